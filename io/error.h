@@ -1,0 +1,27 @@
+#pragma once
+
+#include <stdexcept>
+#include <string>
+
+namespace vb {
+
+/// Thrown for bad input found at start-up or when loading a file: the message names the
+/// file, the key or line, and the offending value. Never thrown inside the frame loop.
+class InputError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+namespace internal {
+[[noreturn]] void DemandFailed(const char* condition, const char* file, int line);
+}  // namespace internal
+
+}  // namespace vb
+
+/// Checks an invariant in every build type; a failure is a bug, so it aborts with a message.
+#define VB_DEMAND(condition)                                           \
+  do {                                                                 \
+    if (!(condition)) {                                                \
+      ::vb::internal::DemandFailed(#condition, __FILE__, __LINE__);    \
+    }                                                                  \
+  } while (false)

@@ -1,0 +1,83 @@
+#include "io/mesh_io.h"
+
+#include <algorithm>
+#include <cctype>
+#include <string>
+
+#include "io/error.h"
+#include "io/obj.h"
+#include "io/off.h"
+#include "io/pcd.h"
+#include "io/xyz.h"
+
+namespace vb::io {
+
+FileFormat FormatFromPath(const std::filesystem::path& path) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (ext == ".ply") return FileFormat::kPly;
+  if (ext == ".off") return FileFormat::kOff;
+  if (ext == ".obj") return FileFormat::kObj;
+  if (ext == ".pcd") return FileFormat::kPcd;
+  if (ext == ".xyz") return FileFormat::kXyz;
+  throw InputError(path.string() + ": unknown file extension '" + ext +
+                   "' (expected .ply, .off, .obj, .pcd or .xyz)");
+}
+
+TriangleMesh ReadMesh(const std::filesystem::path& path, const ReadLimits& limits) {
+  TriangleMesh mesh;
+  switch (FormatFromPath(path)) {
+    case FileFormat::kPly: mesh = ReadPly(path, limits); break;
+    case FileFormat::kOff: mesh = ReadOff(path, limits); break;
+    case FileFormat::kObj: mesh = ReadObj(path, limits); break;
+    case FileFormat::kPcd:
+    case FileFormat::kXyz:
+      throw InputError(path.string() + ": holds a point cloud, but a triangle mesh is needed");
+  }
+  if (mesh.num_faces() == 0) throw InputError(path.string() + ": has no faces, but a triangle mesh is needed");
+  return mesh;
+}
+
+PointCloud ReadCloud(const std::filesystem::path& path, const ReadLimits& limits) {
+  PointCloud cloud;
+  const FileFormat format = FormatFromPath(path);
+  if (format == FileFormat::kPcd) {
+    cloud = ReadPcd(path, limits);
+  } else if (format == FileFormat::kXyz) {
+    cloud = ReadXyz(path, limits);
+  } else {
+    TriangleMesh mesh = format == FileFormat::kPly ? ReadPly(path, limits)
+                        : format == FileFormat::kOff ? ReadOff(path, limits)
+                                                     : ReadObj(path, limits);
+    cloud.points = std::move(mesh.V);
+    cloud.normals = std::move(mesh.N);
+  }
+  if (cloud.size() == 0) throw InputError(path.string() + ": holds no points");
+  return cloud;
+}
+
+void WriteMesh(const std::filesystem::path& path, const TriangleMesh& mesh, const WriteOptions& options) {
+  switch (FormatFromPath(path)) {
+    case FileFormat::kPly: WritePly(path, mesh, options.ply_encoding); return;
+    case FileFormat::kOff: WriteOff(path, mesh); return;
+    case FileFormat::kObj: WriteObj(path, mesh); return;
+    case FileFormat::kPcd:
+    case FileFormat::kXyz:
+      throw InputError(path.string() + ": cannot hold faces; write the mesh as .ply, .off or .obj");
+  }
+}
+
+void WriteCloud(const std::filesystem::path& path, const PointCloud& cloud, const WriteOptions& options) {
+  const FileFormat format = FormatFromPath(path);
+  if (format == FileFormat::kPcd) return WritePcd(path, cloud);
+  if (format == FileFormat::kXyz) return WriteXyz(path, cloud);
+  TriangleMesh mesh;
+  mesh.V = cloud.points;
+  mesh.N = cloud.normals;
+  mesh.F.resize(3, 0);
+  if (format == FileFormat::kPly) return WritePly(path, mesh, options.ply_encoding);
+  if (format == FileFormat::kOff) return WriteOff(path, mesh);
+  WriteObj(path, mesh);
+}
+
+}  // namespace vb::io

@@ -1,0 +1,38 @@
+#pragma once
+
+#include <filesystem>
+
+#include "io/ply.h"
+#include "io/read_limits.h"
+#include "io/triangle_mesh.h"
+
+namespace vb::io {
+
+/// The file formats the io module reads and writes, chosen by file extension
+/// (.ply, .off, .obj for meshes or clouds; .pcd, .xyz for clouds).
+enum class FileFormat { kPly, kOff, kObj, kPcd, kXyz };
+
+/// @throws InputError when the extension is none of the above.
+FileFormat FormatFromPath(const std::filesystem::path& path);
+
+/// Reads a triangle mesh from PLY, OFF or OBJ, keeping vertex order.
+/// @throws InputError naming the file (and line or element) on bad content, on a format that
+///   holds no faces (PCD, XYZ), or on a file with no faces.
+TriangleMesh ReadMesh(const std::filesystem::path& path, const ReadLimits& limits = {});
+
+/// Reads a point cloud from any supported format; a mesh's vertices become the points.
+/// @throws InputError as ReadMesh, or when the cloud is empty.
+PointCloud ReadCloud(const std::filesystem::path& path, const ReadLimits& limits = {});
+
+struct WriteOptions {
+  PlyEncoding ply_encoding = PlyEncoding::kBinaryLittleEndian;
+};
+
+/// Writes a mesh as PLY, OFF or OBJ by extension.
+/// @throws InputError for a cloud-only extension; std::runtime_error when writing fails.
+void WriteMesh(const std::filesystem::path& path, const TriangleMesh& mesh, const WriteOptions& options = {});
+
+/// Writes a cloud in any supported format (a mesh format gets vertices only).
+void WriteCloud(const std::filesystem::path& path, const PointCloud& cloud, const WriteOptions& options = {});
+
+}  // namespace vb::io

@@ -1,0 +1,39 @@
+#pragma once
+
+#include <string>
+
+#include "io/triangle_mesh.h"
+
+namespace vb::io {
+
+/// What a mesh's connectivity is, as counts; built by AnalyzeTopology.
+struct TopologyReport {
+  int num_vertices = 0;
+  int num_faces = 0;
+  int num_edges = 0;
+  int boundary_edges = 0;         ///< edges with one incident face
+  int nonmanifold_edges = 0;      ///< edges with three or more incident faces
+  int inconsistent_edges = 0;     ///< two-face edges both faces traverse the same way
+  int degenerate_faces = 0;       ///< faces that repeat a vertex index
+  int unreferenced_vertices = 0;  ///< vertices no face uses
+  int nonmanifold_vertices = 0;   ///< vertices whose incident faces form more than one fan
+  int components = 0;             ///< face-connected components
+
+  int euler_characteristic() const { return num_vertices - num_edges + num_faces; }
+  /// Closed (watertight) and 2-manifold, no degenerate faces or loose vertices.
+  bool is_closed_manifold() const {
+    return boundary_edges == 0 && nonmanifold_edges == 0 && degenerate_faces == 0 &&
+           unreferenced_vertices == 0 && nonmanifold_vertices == 0 && num_faces > 0;
+  }
+  /// Every interior edge is traversed in opposite directions by its two faces.
+  bool is_consistently_oriented() const { return inconsistent_edges == 0 && nonmanifold_edges == 0; }
+  /// One line naming every defect, for error messages.
+  std::string Describe() const;
+};
+
+/// Counts boundary, non-manifold and inconsistently oriented edges, loose vertices, vertex
+/// fans and components of @p mesh. O(F log F).
+/// @pre every index in mesh.F is in [0, #V).
+TopologyReport AnalyzeTopology(const TriangleMesh& mesh);
+
+}  // namespace vb::io

@@ -1,0 +1,126 @@
+#include "io/mesh_io.h"
+
+#include <gtest/gtest.h>
+
+#include "io/error.h"
+#include "io/mesh_measures.h"
+#include "tests/support/temp_dir.h"
+#include "tests/support/test_meshes.h"
+
+namespace vb::io {
+namespace {
+
+struct MeshCase {
+  const char* file;
+  PlyEncoding encoding;
+  bool normals;
+};
+
+class MeshRoundTripTest : public ::testing::TestWithParam<MeshCase> {};
+
+// Irregular coordinates so any reordering or rounding shows.
+TriangleMesh TestMesh(bool normals) {
+  TriangleMesh mesh = test::Sphere(0.7, 2);
+  for (int i = 0; i < mesh.num_vertices(); ++i) mesh.V.col(i) += Eigen::Vector3d(0.1 * i, -1.0 / 3.0, 1e-7 * i * i);
+  if (normals) mesh.N = VertexNormals(mesh);
+  return mesh;
+}
+
+TEST_P(MeshRoundTripTest, KeepsVertexOrderFacesAndNormalsExactly) {
+  const MeshCase& c = GetParam();
+  test::TempDir dir;
+  const TriangleMesh mesh = TestMesh(c.normals);
+  WriteMesh(dir / c.file, mesh, {c.encoding});
+  const TriangleMesh back = ReadMesh(dir / c.file);
+  ASSERT_EQ(back.num_vertices(), mesh.num_vertices());
+  ASSERT_EQ(back.num_faces(), mesh.num_faces());
+  EXPECT_EQ(back.V, mesh.V);
+  EXPECT_EQ(back.F, mesh.F);
+  ASSERT_EQ(back.has_normals(), c.normals);
+  if (c.normals) {
+    EXPECT_EQ(back.N, mesh.N);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(AllMeshFormats, MeshRoundTripTest,
+                         ::testing::Values(MeshCase{"m.ply", PlyEncoding::kBinaryLittleEndian, false},
+                                           MeshCase{"m.ply", PlyEncoding::kBinaryLittleEndian, true},
+                                           MeshCase{"m.ply", PlyEncoding::kAscii, false},
+                                           MeshCase{"m.ply", PlyEncoding::kAscii, true},
+                                           MeshCase{"m.off", PlyEncoding::kAscii, false},
+                                           MeshCase{"m.off", PlyEncoding::kAscii, true},
+                                           MeshCase{"m.obj", PlyEncoding::kAscii, false},
+                                           MeshCase{"m.obj", PlyEncoding::kAscii, true}),
+                         [](const ::testing::TestParamInfo<MeshCase>& info) {
+                           std::string name = info.param.file + 2;  // extension
+                           if (name == "ply") name += info.param.encoding == PlyEncoding::kAscii ? "_ascii" : "_binary";
+                           return name + (info.param.normals ? "_normals" : "_plain");
+                         });
+
+class CloudRoundTripTest : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(CloudRoundTripTest, KeepsPointsAndNormals) {
+  test::TempDir dir;
+  const TriangleMesh mesh = TestMesh(true);
+  PointCloud cloud{mesh.V, mesh.N};
+  WriteCloud(dir / GetParam(), cloud);
+  const PointCloud back = ReadCloud(dir / GetParam());
+  ASSERT_EQ(back.size(), cloud.size());
+  ASSERT_TRUE(back.has_normals());
+  // PCD stores float32; the text and PLY formats are exact.
+  const double tolerance = FormatFromPath(GetParam()) == FileFormat::kPcd ? 1e-6 : 0.0;
+  EXPECT_LE((back.points - cloud.points).cwiseAbs().maxCoeff(), tolerance);
+  EXPECT_LE((back.normals - cloud.normals).cwiseAbs().maxCoeff(), tolerance);
+}
+
+INSTANTIATE_TEST_SUITE_P(AllCloudFormats, CloudRoundTripTest,
+                         ::testing::Values("c.ply", "c.off", "c.obj", "c.xyz", "c.pcd", "C.PCD"),
+                         [](const ::testing::TestParamInfo<const char*>& info) {
+                           return std::string(info.param[0] == 'C' ? "upper_" : "") + (info.param + 2);
+                         });
+
+TEST(MeshIoTest, ReadCloudAcceptsMeshFiles) {
+  test::TempDir dir;
+  const TriangleMesh mesh = test::Box();
+  WriteMesh(dir / "box.off", mesh);
+  EXPECT_EQ(ReadCloud(dir / "box.off").points, mesh.V);
+}
+
+TEST(MeshIoTest, RefusesUnknownExtensionNamingIt) {
+  test::TempDir dir;
+  const auto file = dir.Write("mesh.stl", "solid x\n");
+  try {
+    ReadMesh(file);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("mesh.stl"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find(".stl"), std::string::npos);
+  }
+}
+
+TEST(MeshIoTest, RefusesCloudWhereMeshIsNeeded) {
+  test::TempDir dir;
+  WriteCloud(dir / "p.xyz", PointCloud{test::Box().V, {}});
+  EXPECT_THROW(ReadMesh(dir / "p.xyz"), InputError);
+  WriteCloud(dir / "p.ply", PointCloud{test::Box().V, {}});
+  EXPECT_THROW(ReadMesh(dir / "p.ply"), InputError);
+  EXPECT_THROW(WriteMesh(dir / "m.pcd", test::Box()), InputError);
+}
+
+TEST(MeshIoTest, RefusesMissingAndEmptyFiles) {
+  test::TempDir dir;
+  EXPECT_THROW(ReadMesh(dir / "absent.ply"), InputError);
+  EXPECT_THROW(ReadCloud(dir.Write("empty.xyz", "")), InputError);
+  EXPECT_THROW(ReadMesh(dir.Write("empty.obj", "# nothing\n")), InputError);
+}
+
+TEST(MeshIoTest, RefusesFilesAboveTheSizeLimit) {
+  test::TempDir dir;
+  WriteMesh(dir / "box.off", test::Box());
+  ReadLimits limits;
+  limits.max_file_bytes = 16;
+  EXPECT_THROW(ReadMesh(dir / "box.off", limits), InputError);
+}
+
+}  // namespace
+}  // namespace vb::io

@@ -1,0 +1,189 @@
+#include "perception/carcass_generator.h"
+
+#include <gtest/gtest.h>
+
+#include "io/mesh_measures.h"
+#include "io/mesh_topology.h"
+#include "io/plane_cut.h"
+
+namespace vb::perception {
+namespace {
+
+class CarcassTemplateTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() { dut_ = new CarcassTemplate(BuildCarcassTemplate()); }
+  static void TearDownTestSuite() {
+    delete dut_;
+    dut_ = nullptr;
+  }
+  static const CarcassTemplate& dut() { return *dut_; }
+
+ private:
+  static CarcassTemplate* dut_;
+};
+CarcassTemplate* CarcassTemplateTest::dut_ = nullptr;
+
+double Sum(const std::vector<io::PartMeasure>& parts) {
+  double sum = 0.0;
+  for (const io::PartMeasure& p : parts) sum += p.volume;
+  return sum;
+}
+
+TEST_F(CarcassTemplateTest, IsAWatertightOrientedManifoldOfLambSize) {
+  const io::TriangleMesh& mesh = dut().mesh;
+  const io::TopologyReport topology = io::AnalyzeTopology(mesh);
+  EXPECT_TRUE(topology.is_closed_manifold()) << topology.Describe();
+  EXPECT_TRUE(topology.is_consistently_oriented()) << topology.Describe();
+  EXPECT_EQ(topology.components, 1);
+  EXPECT_EQ(topology.euler_characteristic(), 2) << "a carcass has no handles";
+  EXPECT_GE(mesh.num_vertices(), 5000);
+  EXPECT_LE(mesh.num_vertices(), 10000);
+  const double length = mesh.V.row(2).maxCoeff() - mesh.V.row(2).minCoeff();
+  EXPECT_GE(length, 1.0);
+  EXPECT_LE(length, 1.3);
+  // A dressed lamb carcass weighs roughly 15-30 kg at about 1 kg per litre.
+  EXPECT_GT(io::SignedVolume(mesh), 0.015);
+  EXPECT_LT(io::SignedVolume(mesh), 0.035);
+  ASSERT_TRUE(mesh.has_normals());
+  EXPECT_NEAR(mesh.N.colwise().norm().minCoeff(), 1.0, 1e-9);
+}
+
+TEST_F(CarcassTemplateTest, HangsFromTheHindLegs) {
+  const io::TriangleMesh& mesh = dut().mesh;
+  Eigen::Index top = 0, bottom = 0;
+  mesh.V.row(2).maxCoeff(&top);
+  mesh.V.row(2).minCoeff(&bottom);
+  EXPECT_GT(dut().weights(kShankLeft, top) + dut().weights(kShankRight, top), 0.99) << "the highest point is a hock";
+  EXPECT_GT(dut().weights(kForearmLeft, bottom) + dut().weights(kForearmRight, bottom) + dut().weights(kNeck, bottom), 0.99);
+}
+
+TEST_F(CarcassTemplateTest, SkinWeightsArePartitionsOfUnity) {
+  const auto& w = dut().weights;
+  EXPECT_GE(w.minCoeff(), 0.0);
+  EXPECT_LT((w.colwise().sum().array() - 1.0).abs().maxCoeff(), 1e-12);
+}
+
+TEST_F(CarcassTemplateTest, ThreeCutsOrderedAlongTheSpineEachOneClosedLoop) {
+  const io::Annotations& a = dut().annotations;
+  ASSERT_EQ(a.cuts.size(), 3u);
+  EXPECT_EQ(a.parts, (std::vector<std::string>{"leg", "loin", "rack", "shoulder"}));
+  EXPECT_EQ(a.vertex_count, dut().mesh.num_vertices());
+  EXPECT_EQ(a.face_count, dut().mesh.num_faces());
+  for (std::size_t c = 0; c < a.cuts.size(); ++c) {
+    const io::CutAnnotation& cut = a.cuts[c];
+    const auto loops = io::PlaneSection(dut().mesh, cut.plane);
+    ASSERT_EQ(loops.size(), 1u) << cut.name;
+    EXPECT_TRUE(loops[0].closed) << cut.name;
+    EXPECT_GE(cut.line.size(), 20u) << cut.name;
+    for (const io::SurfacePoint& p : cut.line) {
+      EXPECT_NEAR(cut.plane.SignedDistance(io::Evaluate(dut().mesh, p)), 0.0, 1e-12);
+    }
+    if (c > 0) {
+      // Each cut lies below the previous one, seen from the gambrel.
+      EXPECT_LT(a.cuts[c - 1].plane.SignedDistance(cut.plane.point), -0.05) << cut.name;
+    }
+  }
+}
+
+TEST_F(CarcassTemplateTest, CutsSplitTheCarcassIntoFourPartsThatSumToTheWhole) {
+  const auto parts = io::MeasureParts(dut().mesh, dut().annotations.planes());
+  ASSERT_EQ(parts.size(), 4u);
+  const double total = io::SignedVolume(dut().mesh);
+  for (const io::PartMeasure& p : parts) EXPECT_GT(p.volume, 0.05 * total);
+  EXPECT_NEAR(Sum(parts), total, 1e-9 * total);
+}
+
+TEST_F(CarcassTemplateTest, RestPoseReproducesTheTemplate) {
+  const PosedCarcass rest = PoseCarcass(dut(), CarcassPose{});
+  EXPECT_LT((rest.mesh.V - dut().mesh.V).cwiseAbs().maxCoeff(), 1e-12);
+  for (std::size_t c = 0; c < rest.cut_planes.size(); ++c) {
+    EXPECT_LT((rest.cut_planes[c].normal - dut().annotations.cuts[c].plane.normal).norm(), 1e-12);
+  }
+}
+
+class CarcassTargetTest : public CarcassTemplateTest, public ::testing::WithParamInterface<std::uint64_t> {};
+
+TEST_P(CarcassTargetTest, KeepsConnectivityAndGroundTruthIsConsistent) {
+  const CarcassPose pose = SampleCarcassPose(GetParam());
+  EXPECT_GE(pose.global_scale, 0.8);
+  EXPECT_LE(pose.global_scale, 1.2);
+  const PosedCarcass target = PoseCarcass(dut(), pose);
+  ASSERT_EQ(target.mesh.F, dut().mesh.F);
+  const io::TopologyReport topology = io::AnalyzeTopology(target.mesh);
+  EXPECT_TRUE(topology.is_closed_manifold() && topology.is_consistently_oriented()) << topology.Describe();
+  const double volume = io::SignedVolume(target.mesh);
+  EXPECT_GT(volume, 0.0);
+
+  ASSERT_EQ(target.cut_planes.size(), 3u);
+  for (std::size_t c = 0; c < 3; ++c) {
+    const io::Plane& plane = target.cut_planes[c];
+    // The template's cut line, carried by vertex correspondence, lies on the true plane...
+    EXPECT_LT(target.cut_line_rms_m[c], 1e-9) << "cut " << c;
+    // ...which meets the target in exactly one closed loop.
+    const auto loops = io::PlaneSection(target.mesh, plane);
+    ASSERT_EQ(loops.size(), 1u) << "cut " << c;
+    EXPECT_TRUE(loops[0].closed);
+    EXPECT_GT(plane.normal.dot(target.up_world), 0.8) << "a cut stays roughly across the spine";
+    if (c > 0) {
+      EXPECT_LT(target.cut_planes[c - 1].SignedDistance(plane.point), 0.0) << "cuts keep their order";
+    }
+  }
+  const auto parts = io::MeasureParts(target.mesh, target.cut_planes);
+  for (const io::PartMeasure& p : parts) EXPECT_GT(p.volume, 0.05 * volume);
+  EXPECT_NEAR(Sum(parts), volume, 1e-9 * volume);
+}
+
+TEST_P(CarcassTargetTest, UprightPlacementHangsAlongPlusZ) {
+  PoseOptions options;
+  options.arbitrary_orientation = false;
+  const PosedCarcass target = PoseCarcass(dut(), SampleCarcassPose(GetParam(), options));
+  EXPECT_GT(target.up_world.z(), 0.95);
+}
+
+INSTANTIATE_TEST_SUITE_P(Seeds, CarcassTargetTest, ::testing::Values(1u, 2u, 3u, 5u, 8u, 13u, 21u, 34u, 1000003u));
+
+TEST_F(CarcassTemplateTest, PosesAreDeterministicPerSeedAndDifferAcrossSeeds) {
+  const PosedCarcass a = PoseCarcass(dut(), SampleCarcassPose(42));
+  const PosedCarcass b = PoseCarcass(dut(), SampleCarcassPose(42));
+  const PosedCarcass c = PoseCarcass(dut(), SampleCarcassPose(43));
+  EXPECT_EQ(a.mesh.V, b.mesh.V);
+  EXPECT_GT((a.mesh.V - c.mesh.V).cwiseAbs().maxCoeff(), 0.01);
+}
+
+TEST_F(CarcassTemplateTest, NormalNoiseFollowsThePaperProtocol) {
+  const double sigma = 0.004;
+  const io::TriangleMesh noisy = AddNormalNoise(dut().mesh, sigma, 7);
+  ASSERT_EQ(noisy.F, dut().mesh.F);
+  const Eigen::Matrix3Xd d = noisy.V - dut().mesh.V;
+  const Eigen::VectorXd along = (d.array() * dut().mesh.N.array()).colwise().sum().transpose();
+  const double n = static_cast<double>(along.size());
+  const double mean = along.mean();
+  const double stddev = std::sqrt((along.array() - mean).square().sum() / (n - 1));
+  EXPECT_NEAR(mean, 0.0, 4 * sigma / std::sqrt(n));
+  EXPECT_NEAR(stddev, sigma, 0.05 * sigma);
+  // Only along the normal.
+  EXPECT_LT((d - dut().mesh.N * along.asDiagonal()).cwiseAbs().maxCoeff(), 1e-15);
+  EXPECT_EQ(AddNormalNoise(dut().mesh, 0.0, 7).V, dut().mesh.V);
+}
+
+TEST_F(CarcassTemplateTest, CloudsSampleTheSurfaceAndMissRegionsOnRequest) {
+  const PosedCarcass target = PoseCarcass(dut(), SampleCarcassPose(5));
+  CloudOptions options;
+  options.num_points = 5000;
+  options.sigma_m = 0.002;
+  const io::PointCloud full = SampleSurfaceCloud(target, options, 1);
+  EXPECT_EQ(full.size(), 5000);
+  EXPECT_FALSE(full.has_normals());
+  // Every sample is near the surface: within an edge length plus 6 sigma of a vertex.
+  for (int i = 0; i < full.size(); i += 7) {
+    const double nearest = (target.mesh.V.colwise() - full.points.col(i)).colwise().norm().minCoeff();
+    EXPECT_LT(nearest, 0.03 + 6 * options.sigma_m);
+  }
+  options.missing_regions = true;
+  const io::PointCloud partial = SampleSurfaceCloud(target, options, 1);
+  EXPECT_LT(partial.size(), full.size());
+  EXPECT_GT(partial.size(), full.size() / 2);
+}
+
+}  // namespace
+}  // namespace vb::perception

@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# The vbutcher command as a user runs it: good runs succeed and write files, bad arguments
+# fail with a message naming the argument and a non-zero exit code.
+set -u
+vbutcher=$1
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+failures=0
+check() {  # check <description> <expected exit, or "nonzero"> <expected text> <command...>
+  local what=$1 want=$2 text=$3
+  shift 3
+  local out status
+  out=$("$@" 2>&1)
+  status=$?
+  local bad=0
+  if [ "$want" = nonzero ]; then [ "$status" -ne 0 ] || bad=1; else [ "$status" -eq "$want" ] || bad=1; fi
+  if [ "$bad" -ne 0 ] || ! grep -q -- "$text" <<<"$out"; then
+    echo "FAIL: $what: exit $status (want $want), output:"
+    echo "$out" | head -20
+    failures=$((failures + 1))
+  else
+    echo "ok: $what"
+  fi
+}
+check "synth writes a set" 0 "template:" "$vbutcher" synth --out "$work/set" --count 2 --seed 3 --sigma-mm 2 --cloud
+for f in template.ply template_annotations.yaml template_skeleton.yaml synthetic_set.yaml \
+         target_000.ply target_000_truth.ply target_000_truth.yaml target_001_cloud.ply; do
+  [ -s "$work/set/$f" ] || { echo "FAIL: missing $f"; failures=$((failures + 1)); }
+done
+check "count must be positive" 2 "--count" "$vbutcher" synth --out "$work/x" --count 0
+check "sigma must be a number" nonzero "sigma" "$vbutcher" synth --out "$work/x" --sigma-mm abc
+check "missing needs cloud" 2 "--missing" "$vbutcher" synth --out "$work/x" --missing
+check "out is required" nonzero "--out" "$vbutcher" synth --count 1
+check "unknown subcommand" nonzero "" "$vbutcher" frobnicate
+check "unwritable output" 1 "cannot create" "$vbutcher" synth --out /proc/vb-cannot-write --count 1
+echo "$failures failed"
+[ "$failures" -eq 0 ]
