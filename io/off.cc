@@ -15,10 +15,11 @@ TriangleMesh ReadOff(const std::filesystem::path& path, const ReadLimits& limits
   internal::LineScanner scan(text, path.string());
   if (!scan.NextLine()) scan.Fail("empty file, expected OFF header");
   const std::string_view magic = scan.tokens()[0];
-  if (magic != "OFF" && magic != "NOFF") {
-    scan.Fail("expected 'OFF' or 'NOFF', found '" + std::string(magic) + "'");
+  if (magic != "OFF" && magic != "NOFF" && magic != "COFF" && magic != "CNOFF") {
+    scan.Fail("expected 'OFF', 'NOFF', 'COFF' or 'CNOFF', found '" + std::string(magic) + "'");
   }
-  const bool with_normals = magic == "NOFF";
+  // Colours (COFF) follow the coordinates and normals; they are read past, not kept.
+  const bool with_normals = magic == "NOFF" || magic == "CNOFF";
   std::size_t first = 1;  // counts may follow the keyword on the same line
   if (scan.tokens().size() == 1) {
     if (!scan.NextLine()) scan.Fail("missing vertex and face counts");

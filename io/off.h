@@ -7,7 +7,8 @@
 
 namespace vb::io {
 
-/// Reads an OFF or NOFF file (vertices, optional normals, polygon faces fan-triangulated).
+/// Reads an OFF, NOFF, COFF or CNOFF file (vertices, optional normals, polygon faces
+/// fan-triangulated; colours are skipped).
 /// @throws InputError "file:line: ..." on malformed content or counts the file cannot hold.
 TriangleMesh ReadOff(const std::filesystem::path& path, const ReadLimits& limits = {});
 

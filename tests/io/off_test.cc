@@ -34,9 +34,17 @@ TEST(OffTest, ReadsNoffNormals) {
   EXPECT_EQ(mesh.N.col(2), Eigen::Vector3d(0, 0, 1));
 }
 
+TEST(OffTest, SkipsColours) {
+  test::TempDir dir;
+  const TriangleMesh mesh = ReadOff(dir.Write("c.off", "COFF\n3 1 0\n0 0 0 255 0 0 255\n1 0 0 0 255 0 255\n0 1 0 0 0 255 255\n3 0 1 2 9 9 9\n"));
+  EXPECT_EQ(mesh.V.col(1), Eigen::Vector3d(1, 0, 0));
+  EXPECT_EQ(mesh.num_faces(), 1);
+}
+
 TEST(OffTest, RejectsBadContentNamingFileAndLine) {
   test::TempDir dir;
   ExpectRejected(dir.Write("magic.off", "PLY\n"), {"magic.off:1", "'OFF'"});
+  ExpectRejected(dir.Write("short_face.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1\n"), {"short_face.off:6", "missing vertex index"});
   ExpectRejected(dir.Write("huge.off", "OFF\n1000000000000 1 0\n0 0 0\n"), {"huge.off:2", "1000000000000"});
   ExpectRejected(dir.Write("neg.off", "OFF\n-3 1 0\n"), {"neg.off:2"});
   ExpectRejected(dir.Write("coord.off", "OFF\n3 1 0\n0 0 0\n1 x 0\n0 1 0\n3 0 1 2\n"), {"coord.off:4", "'x'"});

@@ -33,5 +33,22 @@ check "missing needs cloud" 2 "--missing" "$vbutcher" synth --out "$work/x" --mi
 check "out is required" nonzero "--out" "$vbutcher" synth --count 1
 check "unknown subcommand" nonzero "" "$vbutcher" frobnicate
 check "unwritable output" 1 "cannot create" "$vbutcher" synth --out /proc/vb-cannot-write --count 1
+
+# morph: the template and a target of the set just written.
+check "morph writes the posed template and a report" 0 "coarse total" \
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/m.ply" --report "$work/r.json"
+[ -s "$work/m.ply" ] || { echo "FAIL: morph wrote no mesh"; failures=$((failures + 1)); }
+grep -q '"ok": true' "$work/r.json" || { echo "FAIL: report does not say ok"; failures=$((failures + 1)); }
+printf 'OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n' > "$work/open.off"
+check "morph refuses an open template, naming it" 2 "open.off" \
+  "$vbutcher" morph --template "$work/open.off" --target "$work/set/target_000.ply" --out "$work/x.ply"
+check "morph refuses an unknown stage" 2 "--stage" \
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/x.ply" --stage fine
+: > "$work/empty.xyz"
+check "morph refuses an empty target" 2 "no points" \
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/empty.xyz" --out "$work/x.ply"
+check "morph refuses a missing target" 2 "absent.ply" \
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/absent.ply" --out "$work/x.ply"
+
 echo "$failures failed"
 [ "$failures" -eq 0 ]

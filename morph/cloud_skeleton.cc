@@ -1,0 +1,273 @@
+#include "morph/cloud_skeleton.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numeric>
+#include <unordered_map>
+
+#include <boost/graph/adjacency_list.hpp>
+#include <boost/graph/connected_components.hpp>
+#include <boost/graph/dijkstra_shortest_paths.hpp>
+#include <boost/graph/kruskal_min_spanning_tree.hpp>
+
+#include "io/error.h"
+#include "io/mesh_measures.h"
+#include "morph/point_index.h"
+
+namespace vb::morph {
+namespace {
+
+using Graph = boost::adjacency_list<boost::vecS, boost::vecS, boost::undirectedS, boost::no_property,
+                                    boost::property<boost::edge_weight_t, double>>;
+
+// Voxel-grid downsampling: one centroid per occupied cell; keeps, per output point, the
+// input columns it averages.
+Eigen::Matrix3Xd Downsample(const Eigen::Matrix3Xd& points, double cell, std::vector<std::vector<int>>* members) {
+  const Eigen::Vector3d lo = points.rowwise().minCoeff();
+  std::vector<std::pair<std::array<std::int64_t, 3>, int>> keyed(static_cast<std::size_t>(points.cols()));
+  for (Eigen::Index i = 0; i < points.cols(); ++i) {
+    const Eigen::Vector3d c = ((points.col(i) - lo) / cell).array().floor();
+    keyed[static_cast<std::size_t>(i)] = {{static_cast<std::int64_t>(c.x()), static_cast<std::int64_t>(c.y()), static_cast<std::int64_t>(c.z())},
+                                          static_cast<int>(i)};
+  }
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<Eigen::Vector3d> centres;
+  members->clear();
+  for (std::size_t i = 0; i < keyed.size();) {
+    std::size_t j = i;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    members->emplace_back();
+    while (j < keyed.size() && keyed[j].first == keyed[i].first) {
+      sum += points.col(keyed[j].second);
+      members->back().push_back(keyed[j].second);
+      ++j;
+    }
+    centres.push_back(sum / static_cast<double>(j - i));
+    i = j;
+  }
+  Eigen::Matrix3Xd out(3, static_cast<Eigen::Index>(centres.size()));
+  for (std::size_t i = 0; i < centres.size(); ++i) out.col(static_cast<Eigen::Index>(i)) = centres[i];
+  return out;
+}
+
+int Find(std::vector<int>& parent, int x) {
+  while (parent[static_cast<std::size_t>(x)] != x) {
+    parent[static_cast<std::size_t>(x)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(x)])];
+    x = parent[static_cast<std::size_t>(x)];
+  }
+  return x;
+}
+
+}  // namespace
+
+SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOptions& options) {
+  if (input.cols() < 50) throw InputError("skeleton: the target has " + std::to_string(input.cols()) + " points, fewer than 50");
+  const double size = io::BoundingBoxDiagonal(input);
+  if (!(size > 0.0)) throw InputError("skeleton: the target has no extent");
+
+  std::vector<std::vector<int>> members;
+  Eigen::Matrix3Xd points = Downsample(input, options.voxel * size, &members);
+  const int n = static_cast<int>(points.cols());
+  {
+    // Neighbour averaging: noise along the normals shrinks, the shape's thickness hardly.
+    const PointIndex raw(points);
+    std::vector<int> near;
+    std::vector<double> near_d2;
+    for (int round = 0; round < options.smoothing; ++round) {
+      Eigen::Matrix3Xd smoothed(3, n);
+      for (int i = 0; i < n; ++i) {
+        raw.Nearest(points.col(i), options.neighbours + 1, &near, &near_d2);
+        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+        for (int j : near) sum += points.col(j);
+        smoothed.col(i) = sum / static_cast<double>(near.size());
+      }
+      points = smoothed;
+    }
+  }
+  const PointIndex index(points);
+
+  // k-nearest-neighbour graph; edges much longer than typical spacing would short-cut gaps.
+  std::vector<std::array<int, 2>> edges;
+  std::vector<double> lengths;
+  std::vector<int> found;
+  std::vector<double> d2;
+  for (int i = 0; i < n; ++i) {
+    index.Nearest(points.col(i), options.neighbours + 1, &found, &d2);
+    for (std::size_t k = 1; k < found.size(); ++k) {
+      if (found[k] == i) continue;
+      edges.push_back({std::min(i, found[k]), std::max(i, found[k])});
+      lengths.push_back(std::sqrt(d2[k]));
+    }
+  }
+  std::vector<double> sorted = lengths;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2), sorted.end());
+  const double max_edge = 3.0 * sorted[sorted.size() / 2];
+  Graph graph(static_cast<std::size_t>(n));
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    if (lengths[e] <= max_edge) boost::add_edge(static_cast<std::size_t>(edges[e][0]), static_cast<std::size_t>(edges[e][1]), lengths[e], graph);
+  }
+
+  // Bridge pieces separated by missing regions; drop tiny pieces (outliers).
+  std::vector<int> piece(static_cast<std::size_t>(n));
+  const int num_pieces = boost::connected_components(graph, piece.data());
+  std::vector<int> piece_size(static_cast<std::size_t>(num_pieces), 0);
+  for (int p : piece) ++piece_size[static_cast<std::size_t>(p)];
+  std::vector<bool> keep(static_cast<std::size_t>(n));
+  const int min_piece = std::max(5, static_cast<int>(options.min_piece * n));
+  for (int i = 0; i < n; ++i) keep[static_cast<std::size_t>(i)] = piece_size[static_cast<std::size_t>(piece[static_cast<std::size_t>(i)])] >= min_piece;
+  std::vector<int> joined(static_cast<std::size_t>(num_pieces));
+  std::iota(joined.begin(), joined.end(), 0);
+  for (bool merged = true; merged;) {
+    merged = false;
+    // Closest pair between the group of the first kept point and everything else kept.
+    int first = -1;
+    for (int i = 0; i < n && first < 0; ++i) first = keep[static_cast<std::size_t>(i)] ? i : -1;
+    if (first < 0) break;
+    const int group = Find(joined, piece[static_cast<std::size_t>(first)]);
+    double best = std::numeric_limits<double>::infinity();
+    std::array<int, 2> pair{-1, -1};
+    for (int i = 0; i < n; ++i) {
+      if (!keep[static_cast<std::size_t>(i)] || Find(joined, piece[static_cast<std::size_t>(i)]) == group) continue;
+      index.Nearest(points.col(i), 48, &found, &d2);
+      for (std::size_t k = 0; k < found.size(); ++k) {
+        const int j = found[k];
+        if (keep[static_cast<std::size_t>(j)] && Find(joined, piece[static_cast<std::size_t>(j)]) == group && d2[k] < best) {
+          best = d2[k];
+          pair = {i, j};
+        }
+      }
+    }
+    if (pair[0] < 0) {
+      // No piece within reach of the kd-query: fall back to an exhaustive search.
+      for (int i = 0; i < n; ++i) {
+        if (!keep[static_cast<std::size_t>(i)] || Find(joined, piece[static_cast<std::size_t>(i)]) == group) continue;
+        for (int j = 0; j < n; ++j) {
+          if (!keep[static_cast<std::size_t>(j)] || Find(joined, piece[static_cast<std::size_t>(j)]) != group) continue;
+          const double dd = (points.col(i) - points.col(j)).squaredNorm();
+          if (dd < best) {
+            best = dd;
+            pair = {i, j};
+          }
+        }
+      }
+    }
+    if (pair[0] >= 0) {
+      boost::add_edge(static_cast<std::size_t>(pair[0]), static_cast<std::size_t>(pair[1]), std::sqrt(best), graph);
+      joined[static_cast<std::size_t>(Find(joined, piece[static_cast<std::size_t>(pair[0])]))] = group;
+      merged = true;
+    }
+  }
+
+  // Geodesic distance from an extremity.
+  std::vector<double> distance(static_cast<std::size_t>(n));
+  auto geodesic_from = [&](int source) {
+    boost::dijkstra_shortest_paths(graph, static_cast<std::size_t>(source), boost::distance_map(distance.data()));
+  };
+  int start = 0;
+  while (!keep[static_cast<std::size_t>(start)]) ++start;
+  geodesic_from(start);
+  int root = start;
+  for (int i = 0; i < n; ++i) {
+    if (keep[static_cast<std::size_t>(i)] && std::isfinite(distance[static_cast<std::size_t>(i)]) &&
+        distance[static_cast<std::size_t>(i)] > distance[static_cast<std::size_t>(root)]) {
+      root = i;
+    }
+  }
+  geodesic_from(root);
+
+  // Pieces of each distance band.
+  const double band = options.band * size;
+  std::vector<int> band_of(static_cast<std::size_t>(n), -1);
+  for (int i = 0; i < n; ++i) {
+    if (keep[static_cast<std::size_t>(i)] && std::isfinite(distance[static_cast<std::size_t>(i)])) {
+      band_of[static_cast<std::size_t>(i)] = static_cast<int>(distance[static_cast<std::size_t>(i)] / band);
+    }
+  }
+  std::vector<int> parent(static_cast<std::size_t>(n));
+  std::iota(parent.begin(), parent.end(), 0);
+  for (const auto e : boost::make_iterator_range(boost::edges(graph))) {
+    const int a = static_cast<int>(boost::source(e, graph)), b = static_cast<int>(boost::target(e, graph));
+    if (band_of[static_cast<std::size_t>(a)] >= 0 && band_of[static_cast<std::size_t>(a)] == band_of[static_cast<std::size_t>(b)]) {
+      parent[static_cast<std::size_t>(Find(parent, a))] = Find(parent, b);
+    }
+  }
+  // Fold noise-sized pieces into the neighbouring piece of their band they share the most
+  // graph edges with.
+  {
+    std::unordered_map<int, int> piece_points;
+    for (int i = 0; i < n; ++i) {
+      if (band_of[static_cast<std::size_t>(i)] >= 0) ++piece_points[Find(parent, i)];
+    }
+    std::vector<int> sizes;
+    for (const auto& [root, count] : piece_points) sizes.push_back(count);
+    if (!sizes.empty()) {
+      std::nth_element(sizes.begin(), sizes.begin() + static_cast<std::ptrdiff_t>(sizes.size() / 2), sizes.end());
+      const double small = options.min_band_piece * sizes[sizes.size() / 2];
+      std::unordered_map<int, std::unordered_map<int, int>> touching;
+      for (const auto e : boost::make_iterator_range(boost::edges(graph))) {
+        const int a = static_cast<int>(boost::source(e, graph)), b = static_cast<int>(boost::target(e, graph));
+        if (band_of[static_cast<std::size_t>(a)] < 0 || band_of[static_cast<std::size_t>(b)] < 0) continue;
+        const int ra = Find(parent, a), rb = Find(parent, b);
+        // Only pieces side by side in one band: a limb's last, small band piece continues a
+        // chain from the band before and must stay a tip.
+        if (ra == rb || band_of[static_cast<std::size_t>(a)] != band_of[static_cast<std::size_t>(b)]) continue;
+        ++touching[ra][rb];
+        ++touching[rb][ra];
+      }
+      for (const auto& [root, count] : piece_points) {
+        if (count >= small) continue;
+        int best = -1, best_edges = 0;
+        for (const auto& [other, edges] : touching[root]) {
+          if (edges > best_edges && piece_points[other] >= small) {
+            best = other;
+            best_edges = edges;
+          }
+        }
+        if (best >= 0) parent[static_cast<std::size_t>(Find(parent, root))] = Find(parent, best);
+      }
+    }
+  }
+  std::unordered_map<int, int> node_of_root;
+  std::vector<Eigen::Vector3d> sums;
+  SkeletonGraph skeleton;
+  std::vector<int> node_of(static_cast<std::size_t>(n), -1);
+  for (int i = 0; i < n; ++i) {
+    if (band_of[static_cast<std::size_t>(i)] < 0) continue;
+    const auto [it, inserted] = node_of_root.try_emplace(Find(parent, i), static_cast<int>(sums.size()));
+    if (inserted) {
+      sums.emplace_back(Eigen::Vector3d::Zero());
+      skeleton.support.emplace_back();
+    }
+    node_of[static_cast<std::size_t>(i)] = it->second;
+    sums[static_cast<std::size_t>(it->second)] += points.col(i) * static_cast<double>(members[static_cast<std::size_t>(i)].size());
+    auto& support = skeleton.support[static_cast<std::size_t>(it->second)];
+    support.insert(support.end(), members[static_cast<std::size_t>(i)].begin(), members[static_cast<std::size_t>(i)].end());
+  }
+  skeleton.nodes.resize(3, static_cast<Eigen::Index>(sums.size()));
+  for (std::size_t v = 0; v < sums.size(); ++v) {
+    skeleton.nodes.col(static_cast<Eigen::Index>(v)) = sums[v] / static_cast<double>(skeleton.support[v].size());
+  }
+
+  // Join pieces that touch across neighbouring bands, then keep a minimum spanning tree.
+  std::map<std::pair<int, int>, bool> links;
+  for (const auto e : boost::make_iterator_range(boost::edges(graph))) {
+    const int a = static_cast<int>(boost::source(e, graph)), b = static_cast<int>(boost::target(e, graph));
+    const int na = node_of[static_cast<std::size_t>(a)], nb = node_of[static_cast<std::size_t>(b)];
+    if (na < 0 || nb < 0 || na == nb) continue;
+    links[{std::min(na, nb), std::max(na, nb)}] = true;
+  }
+  Graph nodes_graph(sums.size());
+  for (const auto& [link, unused] : links) {
+    boost::add_edge(static_cast<std::size_t>(link.first), static_cast<std::size_t>(link.second),
+                    (skeleton.nodes.col(link.first) - skeleton.nodes.col(link.second)).norm(), nodes_graph);
+  }
+  std::vector<Graph::edge_descriptor> tree;
+  boost::kruskal_minimum_spanning_tree(nodes_graph, std::back_inserter(tree));
+  for (const auto& e : tree) {
+    skeleton.edges.push_back({static_cast<int>(boost::source(e, nodes_graph)), static_cast<int>(boost::target(e, nodes_graph))});
+  }
+  return skeleton;
+}
+
+}  // namespace vb::morph

@@ -1,0 +1,49 @@
+#pragma once
+
+#include <string>
+
+#include <Eigen/Core>
+
+#include "io/triangle_mesh.h"
+#include "morph/cloud_skeleton.h"
+#include "morph/embedded_deformation.h"
+#include "morph/feature_association.h"
+#include "morph/skeleton_graph.h"
+#include "morph/template_model.h"
+
+namespace vb::morph {
+
+struct CoarseOptions {
+  CloudSkeletonOptions skeleton;
+  /// For the target's skeleton, fractions of the target's size. Level-set branches run to
+  /// the tips and noise grows short spurs, so the spur threshold is longer than the
+  /// template's.
+  FeatureOptions features{.min_branch_length = 0.09, .junction_merge_distance = 0.08};
+  AssociationOptions association;
+  /// Samples per side when checking candidate pairings against the surfaces.
+  int verification_samples = 400;
+  EmbeddedDeformationOptions deformation;
+};
+
+/// The outcome of the coarse stage. Expected trouble (a skeleton with too few feature nodes,
+/// a solver failure) is reported in `ok`/`error`, never thrown.
+struct CoarseResult {
+  bool ok = false;
+  std::string error;
+  io::TriangleMesh mesh;             ///< posed template in the target's frame (template faces)
+  Similarity template_to_target;     ///< from the feature association
+  Association association;
+  FeatureNodes target_features;      ///< in the target's frame
+  SolveSummary deformation;
+  double skeleton_seconds = 0.0;
+  double association_seconds = 0.0;
+  double deformation_seconds = 0.0;
+  double total_seconds = 0.0;
+};
+
+/// Section II-A: skeleton of the target cloud, feature association (eq. 3) and embedded
+/// deformation of the template (eqs. 4-10) so its posture matches the target's.
+/// @param[in] target 3 by N points (a cloud, or a mesh's vertices).
+CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target, const CoarseOptions& options = {});
+
+}  // namespace vb::morph

@@ -1,0 +1,179 @@
+#include "morph/embedded_deformation.h"
+
+#include <chrono>
+#include <cmath>
+
+#include <ceres/ceres.h>
+
+#include "io/error.h"
+
+namespace vb::morph {
+namespace {
+
+// Eq. (6), one node: the entries of R^T R - I, off-diagonal ones counted twice as in the
+// Frobenius norm.
+struct RotationCost {
+  explicit RotationCost(double weight) : w(std::sqrt(weight)) {}
+  template <typename T>
+  bool operator()(const T* R, T* r) const {
+    auto column_dot = [R](int a, int b) { return R[a] * R[b] + R[3 + a] * R[3 + b] + R[6 + a] * R[6 + b]; };
+    const T root2(std::sqrt(2.0));
+    r[0] = w * (column_dot(0, 0) - T(1));
+    r[1] = w * (column_dot(1, 1) - T(1));
+    r[2] = w * (column_dot(2, 2) - T(1));
+    r[3] = w * root2 * column_dot(0, 1);
+    r[4] = w * root2 * column_dot(0, 2);
+    r[5] = w * root2 * column_dot(1, 2);
+    return true;
+  }
+  double w;
+};
+
+// Eq. (7), one directed edge (i, j): node j's transform should predict where node i goes.
+struct RegularisationCost {
+  RegularisationCost(const Eigen::Vector3d& gi, const Eigen::Vector3d& gj, double weight)
+      : d(gi - gj), gi(gi), gj(gj), w(std::sqrt(weight)) {}
+  template <typename T>
+  bool operator()(const T* Rj, const T* tj, const T* ti, T* r) const {
+    for (int a = 0; a < 3; ++a) {
+      const T rotated = Rj[3 * a] * d.x() + Rj[3 * a + 1] * d.y() + Rj[3 * a + 2] * d.z();
+      r[a] = w * (rotated + gj[a] + tj[a] - (gi[a] + ti[a]));
+    }
+    return true;
+  }
+  Eigen::Vector3d d, gi, gj;
+  double w;
+};
+
+// Eq. (8), one bridge (j, k): R_j^T R_k - I.
+struct RigidityCost {
+  explicit RigidityCost(double weight) : w(std::sqrt(weight)) {}
+  template <typename T>
+  bool operator()(const T* Rj, const T* Rk, T* r) const {
+    for (int a = 0; a < 3; ++a) {
+      for (int b = 0; b < 3; ++b) {
+        const T dot = Rj[a] * Rk[b] + Rj[3 + a] * Rk[3 + b] + Rj[6 + a] * Rk[6 + b];
+        r[3 * a + b] = w * (dot - T(a == b ? 1.0 : 0.0));
+      }
+    }
+    return true;
+  }
+  double w;
+};
+
+// Eqs. (5) and (14): the deformed point (eq. 9) against its target, or its target's plane.
+struct DataCost {
+  DataCost(const PointConstraint& c, const DeformationGraph& graph, double weight) : c(c), graph(graph), w(std::sqrt(weight)) {}
+  template <typename T>
+  bool operator()(T const* const* blocks, T* r) const {
+    T p[3] = {T(0), T(0), T(0)};
+    for (std::size_t k = 0; k < c.nodes.size(); ++k) {
+      const T* R = blocks[2 * k];
+      const T* t = blocks[2 * k + 1];
+      const Eigen::Vector3d g = graph.nodes.col(c.nodes[k]);
+      const Eigen::Vector3d d = c.rest - g;
+      for (int a = 0; a < 3; ++a) {
+        p[a] += c.weights[k] * (R[3 * a] * d.x() + R[3 * a + 1] * d.y() + R[3 * a + 2] * d.z() + g[a] + t[a]);
+      }
+    }
+    if (c.normal.isZero()) {
+      for (int a = 0; a < 3; ++a) r[a] = w * (p[a] - c.target[a]);
+    } else {
+      r[0] = w * (c.normal.x() * (p[0] - c.target.x()) + c.normal.y() * (p[1] - c.target.y()) +
+                  c.normal.z() * (p[2] - c.target.z()));
+    }
+    return true;
+  }
+  const PointConstraint& c;
+  const DeformationGraph& graph;
+  double w;
+};
+
+}  // namespace
+
+DeformationState DeformationState::Identity(int num_nodes) {
+  DeformationState s;
+  Eigen::Matrix<double, 9, 1> identity;
+  identity << 1, 0, 0, 0, 1, 0, 0, 0, 1;
+  s.R.assign(static_cast<std::size_t>(num_nodes), identity);
+  s.t.assign(static_cast<std::size_t>(num_nodes), Eigen::Vector3d::Zero());
+  return s;
+}
+
+Eigen::Matrix3d DeformationState::rotation(int j) const {
+  return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(R[static_cast<std::size_t>(j)].data());
+}
+
+SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph, std::span<const PointConstraint> constraints,
+                                      const EmbeddedDeformationOptions& options, DeformationState* state) {
+  VB_DEMAND(static_cast<int>(state->R.size()) == graph.num_nodes() && static_cast<int>(state->t.size()) == graph.num_nodes());
+  const auto start = std::chrono::steady_clock::now();
+  ceres::Problem::Options problem_options;
+  problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  const auto R = [state](int j) { return state->R[static_cast<std::size_t>(j)].data(); };
+  const auto t = [state](int j) { return state->t[static_cast<std::size_t>(j)].data(); };
+  for (int j = 0; j < graph.num_nodes(); ++j) {
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<RotationCost, 6, 9>(new RotationCost(options.w_rot)), nullptr, R(j));
+  }
+  for (int i = 0; i < graph.num_nodes(); ++i) {
+    for (int j : graph.neighbours[static_cast<std::size_t>(i)]) {
+      // Eq. (7): for each node i and each j of its mu neighbours.
+      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<RegularisationCost, 3, 9, 3, 3>(
+                                   new RegularisationCost(graph.nodes.col(i), graph.nodes.col(j), options.w_reg)),
+                               nullptr, R(j), t(j), t(i));
+    }
+  }
+  for (const auto& [j, k] : graph.bridges) {
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<RigidityCost, 9, 9, 9>(new RigidityCost(options.w_rig)), nullptr, R(j), R(k));
+  }
+  for (const PointConstraint& c : constraints) {
+    auto* cost = new ceres::DynamicAutoDiffCostFunction<DataCost, 4>(new DataCost(c, graph, options.w_data));
+    std::vector<double*> blocks;
+    for (int node : c.nodes) {
+      cost->AddParameterBlock(9);
+      cost->AddParameterBlock(3);
+      blocks.push_back(R(node));
+      blocks.push_back(t(node));
+    }
+    cost->SetNumResiduals(c.normal.isZero() ? 3 : 1);
+    problem.AddResidualBlock(cost, nullptr, blocks);
+  }
+
+  ceres::Solver::Options solver_options;
+  solver_options.minimizer_type = ceres::TRUST_REGION;
+  solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  solver_options.max_num_iterations = options.max_iterations;
+  solver_options.num_threads = options.num_threads;
+  solver_options.function_tolerance = 1e-7;
+  solver_options.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options, &problem, &summary);
+
+  SolveSummary out;
+  out.usable = summary.IsSolutionUsable();
+  out.iterations = static_cast<int>(summary.iterations.size());
+  out.initial_cost = summary.initial_cost;
+  out.final_cost = summary.final_cost;
+  out.message = summary.message;
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+Eigen::Matrix3Xd DeformPoints(const DeformationGraph& graph, const NodeWeights& weights, const Eigen::Matrix3Xd& rest,
+                              const DeformationState& state) {
+  VB_DEMAND(weights.nodes.cols() == rest.cols());
+  Eigen::Matrix3Xd out = Eigen::Matrix3Xd::Zero(3, rest.cols());
+  for (Eigen::Index i = 0; i < rest.cols(); ++i) {
+    for (Eigen::Index k = 0; k < weights.nodes.rows(); ++k) {
+      const int j = weights.nodes(k, i);
+      if (j < 0) continue;
+      const Eigen::Vector3d g = graph.nodes.col(j);
+      out.col(i) += weights.weights(k, i) * (state.rotation(j) * (rest.col(i) - g) + g + state.t[static_cast<std::size_t>(j)]);
+    }
+  }
+  return out;
+}
+
+}  // namespace vb::morph

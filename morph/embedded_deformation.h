@@ -1,0 +1,65 @@
+#pragma once
+
+#include <span>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "morph/deformation_graph.h"
+
+namespace vb::morph {
+
+/// Per-node affine transforms of the embedded deformation: point p near node j moves to
+/// R_j (p - g_j) + g_j + t_j.
+struct DeformationState {
+  std::vector<Eigen::Matrix<double, 9, 1>> R;  ///< row-major 3x3, not forced to be a rotation
+  std::vector<Eigen::Vector3d> t;
+
+  /// Identity transforms for @p num_nodes nodes.
+  static DeformationState Identity(int num_nodes);
+  Eigen::Matrix3d rotation(int j) const;
+};
+
+/// A data term on a point carried by the graph: with @p normal zero it pulls the deformed
+/// point onto @p target (E_con, eq. 5); otherwise onto the plane through @p target with that
+/// normal (E_plane, eq. 14).
+struct PointConstraint {
+  Eigen::Vector3d rest;    ///< position before deformation
+  Eigen::Vector3d target;
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  std::vector<int> nodes;  ///< nodes acting on the point
+  std::vector<double> weights;
+};
+
+/// Weights of eq. (4). Scale-free when positions are in units of the template's size.
+struct EmbeddedDeformationOptions {
+  double w_data = 100.0;  ///< w_con or w_plane
+  double w_rot = 1.0;
+  double w_reg = 10.0;
+  double w_rig = 10.0;
+  int max_iterations = 50;
+  int num_threads = 2;
+};
+
+struct SolveSummary {
+  bool usable = false;  ///< the solver returned a finite solution
+  int iterations = 0;
+  double initial_cost = 0.0;
+  double final_cost = 0.0;
+  double seconds = 0.0;
+  std::string message;
+};
+
+/// Minimises w_data E_data + w_rot E_rot (6) + w_reg E_reg (7) + w_rig E_rig (8) over the
+/// node transforms with Ceres' Levenberg-Marquardt and a sparse normal Cholesky solver,
+/// starting from @p state.
+SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph, std::span<const PointConstraint> constraints,
+                                      const EmbeddedDeformationOptions& options, DeformationState* state);
+
+/// Eq. (9): moves each column of @p rest by the nodes acting on it.
+/// @param[in] rest 3 by N points; @param[in] weights K by N node influences.
+Eigen::Matrix3Xd DeformPoints(const DeformationGraph& graph, const NodeWeights& weights,
+                              const Eigen::Matrix3Xd& rest, const DeformationState& state);
+
+}  // namespace vb::morph

@@ -1,0 +1,276 @@
+#include "morph/feature_association.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <Eigen/Geometry>
+
+namespace vb::morph {
+namespace {
+
+struct Search {
+  // Candidate points: terminals first, then junctions.
+  Eigen::Matrix3Xd a, b;
+  int a_terminals = 0, b_terminals = 0;
+  bool prune = true;
+  int max_terminal_skips = 1, max_junction_skips = 1;
+  int terminal_skips = 0, junction_skips = 0;
+  std::vector<int> a_slots;  // which `a` nodes get paired (the smaller side of each kind)
+  bool a_is_from = true;
+  double max_stretch = 1.8;
+
+  std::vector<int> assignment;  // per slot, index into b
+  std::vector<bool> used;
+  struct Candidate {
+    double cost;
+    std::vector<int> slots, assignment;
+    Similarity fit;
+  };
+  std::vector<Candidate> best;  // sorted by cost, at most keep
+  std::size_t keep = 16;
+  long candidates = 0, pruned = 0;
+
+  bool Consistent(std::size_t depth) const {
+    // Ratios of paired distances must agree within the allowed stretch.
+    double lo = std::numeric_limits<double>::infinity(), hi = 0.0;
+    // Terminal-to-terminal distances only: junction placement depends on the skeletoniser.
+    for (std::size_t i = 0; i <= depth; ++i) {
+      if (a_slots[i] >= a_terminals || assignment[i] < 0) continue;
+      for (std::size_t j = i + 1; j <= depth; ++j) {
+        if (a_slots[j] >= a_terminals || assignment[j] < 0) continue;
+        const double da = (a.col(a_slots[i]) - a.col(a_slots[j])).norm();
+        const double db = (b.col(assignment[i]) - b.col(assignment[j])).norm();
+        if (da < 1e-12 || db < 1e-12) continue;
+        lo = std::min(lo, db / da);
+        hi = std::max(hi, db / da);
+      }
+    }
+    return hi <= max_stretch * lo || hi == 0.0;
+  }
+
+  void Evaluate() {
+    Eigen::Index n = 0;
+    for (int j : assignment) n += j >= 0 ? 1 : 0;
+    if (n < 3) return;
+    Eigen::Matrix3Xd src(3, n), dst(3, n);
+    for (std::size_t i = 0, k = 0; i < a_slots.size(); ++i) {
+      if (assignment[i] < 0) continue;
+      src.col(static_cast<Eigen::Index>(k)) = a.col(a_slots[i]);
+      dst.col(static_cast<Eigen::Index>(k)) = b.col(assignment[i]);
+      ++k;
+    }
+    if (!a_is_from) std::swap(src, dst);
+    const Eigen::Matrix4d T = Eigen::umeyama(src, dst, true);
+    const Eigen::Matrix3d sR = T.topLeftCorner<3, 3>();
+    double cost = ((sR * src).colwise() + T.topRightCorner<3, 1>() - dst).squaredNorm();
+    const double scale = std::cbrt(sR.determinant());
+    ++candidates;
+    // Rank by residual per degree of freedom left after the 7-parameter similarity (fewer
+    // pairs always fit better), doubled for every feature left unpaired: leaving one out
+    // must at least halve the residual, as a spur or a merged limb does; the floor keeps
+    // exact fits preferring more pairs.
+    const double per_dof = cost / static_cast<double>(std::max<Eigen::Index>(1, 3 * n - 7)) + 1e-12;
+    cost = per_dof * std::pow(2.0, terminal_skips + junction_skips);
+    if (best.size() == keep && cost >= best.back().cost) return;
+    Candidate c{cost, a_slots, assignment, {}};
+    c.fit.scale = scale;
+    c.fit.R = sR / scale;
+    c.fit.t = T.topRightCorner<3, 1>();
+    best.insert(std::upper_bound(best.begin(), best.end(), c, [](const Candidate& x, const Candidate& y) { return x.cost < y.cost; }),
+                std::move(c));
+    if (best.size() > keep) best.pop_back();
+  }
+
+  void Recurse(std::size_t depth) {
+    if (depth == a_slots.size()) {
+      Evaluate();
+      return;
+    }
+    const bool terminal = a_slots[depth] < a_terminals;
+    const int begin = terminal ? 0 : b_terminals;
+    const int end = terminal ? b_terminals : static_cast<int>(b.cols());
+    // Leave this feature unpaired (a spur, or a limb the other skeleton merged away).
+    int& skips = terminal ? terminal_skips : junction_skips;
+    if (skips < (terminal ? max_terminal_skips : max_junction_skips)) {
+      ++skips;
+      assignment[depth] = -1;
+      Recurse(depth + 1);
+      --skips;
+    }
+    for (int j = begin; j < end; ++j) {
+      if (used[static_cast<std::size_t>(j)]) continue;
+      assignment[depth] = j;
+      if (prune && depth >= 2 && !Consistent(depth)) {
+        ++pruned;
+        continue;
+      }
+      used[static_cast<std::size_t>(j)] = true;
+      Recurse(depth + 1);
+      used[static_cast<std::size_t>(j)] = false;
+    }
+  }
+};
+
+Eigen::Matrix3Xd Stack(const FeatureNodes& f) {
+  Eigen::Matrix3Xd all(3, f.num_terminals() + f.num_junctions());
+  all << f.terminals, f.junctions;
+  return all;
+}
+
+double Permutations(int n, int k) {
+  double p = 1.0;
+  for (int i = 0; i < k; ++i) p *= n - i;
+  return p;
+}
+
+// Keeps the @p keep junctions nearest the centroid of all features.
+FeatureNodes TrimJunctions(const FeatureNodes& f, int keep) {
+  if (f.num_junctions() <= keep) return f;
+  const Eigen::Vector3d centre = Stack(f).rowwise().mean();
+  std::vector<int> order(static_cast<std::size_t>(f.num_junctions()));
+  for (int i = 0; i < f.num_junctions(); ++i) order[static_cast<std::size_t>(i)] = i;
+  std::sort(order.begin(), order.end(), [&](int x, int y) {
+    return (f.junctions.col(x) - centre).squaredNorm() < (f.junctions.col(y) - centre).squaredNorm();
+  });
+  FeatureNodes out = f;
+  out.junctions.resize(3, keep);
+  out.junction_support.clear();
+  for (int i = 0; i < keep; ++i) {
+    out.junctions.col(i) = f.junctions.col(order[static_cast<std::size_t>(i)]);
+    if (static_cast<std::size_t>(order[static_cast<std::size_t>(i)]) < f.junction_support.size()) {
+      out.junction_support.push_back(f.junction_support[static_cast<std::size_t>(order[static_cast<std::size_t>(i)])]);
+    }
+  }
+  return out;
+}
+
+// Keeps the @p keep terminals farthest from the centroid of all features.
+FeatureNodes TrimTerminals(const FeatureNodes& f, int keep) {
+  if (f.num_terminals() <= keep) return f;
+  const Eigen::Vector3d centre = Stack(f).rowwise().mean();
+  std::vector<int> order(static_cast<std::size_t>(f.num_terminals()));
+  for (int i = 0; i < f.num_terminals(); ++i) order[static_cast<std::size_t>(i)] = i;
+  std::sort(order.begin(), order.end(), [&](int x, int y) {
+    return (f.terminals.col(x) - centre).squaredNorm() > (f.terminals.col(y) - centre).squaredNorm();
+  });
+  FeatureNodes out = f;
+  out.terminals.resize(3, keep);
+  out.terminal_support.clear();
+  for (int i = 0; i < keep; ++i) {
+    out.terminals.col(i) = f.terminals.col(order[static_cast<std::size_t>(i)]);
+    if (static_cast<std::size_t>(order[static_cast<std::size_t>(i)]) < f.terminal_support.size()) {
+      out.terminal_support.push_back(f.terminal_support[static_cast<std::size_t>(order[static_cast<std::size_t>(i)])]);
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+std::vector<Association> AssociateFeatureNodes(const FeatureNodes& from_in, const FeatureNodes& to_in,
+                                               const AssociationOptions& options) {
+  FeatureNodes from = from_in, to = to_in;
+  auto count = [&]() {
+    // Pairings, times the ways of leaving one terminal and one junction out.
+    const int t = std::min(from.num_terminals(), to.num_terminals());
+    const int j = std::min(from.num_junctions(), to.num_junctions());
+    return Permutations(std::max(from.num_terminals(), to.num_terminals()), t) * (t + 1) *
+           Permutations(std::max(from.num_junctions(), to.num_junctions()), j) * (j + 1);
+  };
+  // Trim the larger side first: terminals down to four, then junctions down to one.
+  while (count() > static_cast<double>(options.max_candidates)) {
+    FeatureNodes& larger_t = from.num_terminals() >= to.num_terminals() ? from : to;
+    FeatureNodes& larger_j = from.num_junctions() >= to.num_junctions() ? from : to;
+    if (larger_t.num_terminals() > 4) {
+      larger_t = TrimTerminals(larger_t, larger_t.num_terminals() - 1);
+    } else if (larger_j.num_junctions() > 1) {
+      larger_j = TrimJunctions(larger_j, larger_j.num_junctions() - 1);
+    } else {
+      break;  // at most 4! * 5 * 2 pairings: small
+    }
+  }
+
+  std::vector<Association> results;
+  const int pairs = std::min(from.num_terminals(), to.num_terminals()) + std::min(from.num_junctions(), to.num_junctions());
+  if (pairs < 3) return results;
+
+  // Search from the side with fewer nodes of each kind; to keep one search tree, `a` is the
+  // side with fewer terminals and every junction of `a` is paired when it has fewer too.
+  Search s;
+  s.a_is_from = from.num_terminals() <= to.num_terminals();
+  const FeatureNodes& fa = s.a_is_from ? from : to;
+  const FeatureNodes& fb = s.a_is_from ? to : from;
+  s.a = Stack(fa);
+  s.b = Stack(fb);
+  s.a_terminals = fa.num_terminals();
+  s.b_terminals = fb.num_terminals();
+  s.max_stretch = options.max_relative_stretch;
+  s.keep = static_cast<std::size_t>(std::max(1, options.keep_best));
+  for (int i = 0; i < fa.num_terminals(); ++i) s.a_slots.push_back(i);
+  // Junctions: pair all of a's if it has no more than b; otherwise only as many as b has,
+  // trying every subset of a's junctions.
+  const int ja = fa.num_junctions(), jb = fb.num_junctions();
+  std::vector<std::vector<int>> junction_subsets;
+  if (ja <= jb) {
+    junction_subsets.emplace_back();
+    for (int j = 0; j < ja; ++j) junction_subsets.back().push_back(fa.num_terminals() + j);
+  } else {
+    std::vector<bool> pick(static_cast<std::size_t>(ja), false);
+    std::fill(pick.begin(), pick.begin() + jb, true);
+    do {
+      junction_subsets.emplace_back();
+      for (int j = 0; j < ja; ++j) {
+        if (pick[static_cast<std::size_t>(j)]) junction_subsets.back().push_back(fa.num_terminals() + j);
+      }
+    } while (std::prev_permutation(pick.begin(), pick.end()));
+  }
+  // If distance-ratio pruning leaves nothing (spurious or missing terminals), search again
+  // without it.
+  for (bool prune : {true, false}) {
+    s.prune = prune;
+    for (const auto& subset : junction_subsets) {
+      s.a_slots.resize(static_cast<std::size_t>(fa.num_terminals()));
+      s.a_slots.insert(s.a_slots.end(), subset.begin(), subset.end());
+      s.assignment.assign(s.a_slots.size(), -1);
+      s.used.assign(static_cast<std::size_t>(s.b.cols()), false);
+      s.Recurse(0);
+    }
+    if (!s.best.empty()) break;
+  }
+  // Map back to the caller's (untrimmed) indices by position.
+  auto original_index = [](const Eigen::Matrix3Xd& trimmed, const Eigen::Matrix3Xd& original, int i) {
+    for (int k = 0; k < original.cols(); ++k) {
+      if (original.col(k) == trimmed.col(i)) return k;
+    }
+    return i;
+  };
+  for (const Search::Candidate& c : s.best) {
+    Association result;
+    result.ok = true;
+    result.candidates = s.candidates;
+    result.pruned = s.pruned;
+    result.from_to = c.fit;
+    result.rms_residual = std::sqrt(c.cost);  // per degree of freedom
+    for (std::size_t k = 0; k < c.slots.size(); ++k) {
+      const int ia = c.slots[k], ib = c.assignment[k];
+      if (ib < 0) continue;
+      const bool terminal = ia < fa.num_terminals();
+      int from_index = s.a_is_from ? ia : ib;
+      int to_index = s.a_is_from ? ib : ia;
+      if (terminal) {
+        from_index = original_index(from.terminals, from_in.terminals, from_index);
+        to_index = original_index(to.terminals, to_in.terminals, to_index);
+        result.terminals.emplace_back(from_index, to_index);
+      } else {
+        from_index = original_index(from.junctions, from_in.junctions, from_index - from.num_terminals());
+        to_index = original_index(to.junctions, to_in.junctions, to_index - to.num_terminals());
+        result.junctions.emplace_back(from_index, to_index);
+      }
+    }
+    results.push_back(std::move(result));
+  }
+  return results;
+}
+
+}  // namespace vb::morph

@@ -1,0 +1,56 @@
+#pragma once
+
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "morph/skeleton_graph.h"
+
+namespace vb::morph {
+
+/// A similarity transform x -> scale * R * x + t.
+struct Similarity {
+  double scale = 1.0;
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d t = Eigen::Vector3d::Zero();
+
+  Eigen::Vector3d operator()(const Eigen::Vector3d& x) const { return scale * (R * x) + t; }
+  Similarity Inverse() const { return {1.0 / scale, R.transpose(), -(R.transpose() * t) / scale}; }
+};
+
+/// The chosen pairing of feature nodes between two skeletons (eq. 3).
+struct Association {
+  bool ok = false;
+  std::vector<std::pair<int, int>> terminals;  ///< (index in `from`, index in `to`)
+  std::vector<std::pair<int, int>> junctions;
+  Similarity from_to;                          ///< best fit of the paired nodes, `from` -> `to`
+  double rms_residual = 0.0;  ///< of that fit per residual degree of freedom, with the penalty for unpaired features; `to` units
+  long candidates = 0;                         ///< pairings whose fit was evaluated
+  long pruned = 0;                             ///< partial pairings cut by distance ratios
+};
+
+struct AssociationOptions {
+  /// Two paired segments may not change length by more than this factor relative to each
+  /// other (a carcass bends, it does not stretch a leg to twice its length).
+  double max_relative_stretch = 2.5;
+  /// More candidates than this: the feature sets are trimmed to their most extreme nodes.
+  long max_candidates = 300'000;
+  /// How many of the best pairings to return (distinct, best first), for verification.
+  int keep_best = 64;
+};
+
+/// Exhaustive search for the feature correspondence that minimises eq. (3): every
+/// injective pairing of terminals with terminals and junctions with junctions (the smaller
+/// set of each kind paired, but for at most one terminal and one junction left out, since
+/// real skeletons grow spurs and merge limbs) is scored by the residual per pair of its
+/// closed-form similarity fit (Umeyama, with scale since carcasses differ in size);
+/// partial pairings whose terminal-to-terminal distances cannot come from one similarity
+/// (up to max_relative_stretch) are cut.
+/// Returns up to options.keep_best pairings, lowest residual first; empty when fewer than
+/// three pairs are possible. Every returned Association has ok = true and shares the
+/// candidate counts of the whole search.
+std::vector<Association> AssociateFeatureNodes(const FeatureNodes& from, const FeatureNodes& to,
+                                               const AssociationOptions& options = {});
+
+}  // namespace vb::morph

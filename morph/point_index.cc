@@ -1,0 +1,41 @@
+#include "morph/point_index.h"
+
+#include <nanoflann.hpp>
+
+#include "io/error.h"
+
+namespace vb::morph {
+
+struct PointIndex::Tree {
+  using Adaptor = nanoflann::KDTreeEigenMatrixAdaptor<Eigen::Matrix3Xd, 3, nanoflann::metric_L2_Simple, false>;
+  explicit Tree(const Eigen::Matrix3Xd& points) : adaptor(3, std::cref(points), 16) { adaptor.index->buildIndex(); }
+  Adaptor adaptor;
+};
+
+PointIndex::PointIndex(const Eigen::Matrix3Xd& points) : points_(points), tree_(std::make_unique<Tree>(points)) {}
+
+PointIndex::~PointIndex() = default;
+
+int PointIndex::Nearest(const Eigen::Vector3d& q) const {
+  VB_DEMAND(points_.cols() > 0);
+  Eigen::Index index = 0;
+  double squared = 0.0;
+  tree_->adaptor.query(q.data(), 1, &index, &squared);
+  return static_cast<int>(index);
+}
+
+void PointIndex::Nearest(const Eigen::Vector3d& q, int k, std::vector<int>* indices,
+                         std::vector<double>* squared_distances) const {
+  const auto n = static_cast<std::size_t>(std::min<Eigen::Index>(k, points_.cols()));
+  std::vector<Eigen::Index> found(n);
+  squared_distances->resize(n);
+  nanoflann::KNNResultSet<double, Eigen::Index> result(n);
+  result.init(found.data(), squared_distances->data());
+  tree_->adaptor.index->findNeighbors(result, q.data(), nanoflann::SearchParams());
+  const std::size_t count = result.size();
+  indices->resize(count);
+  squared_distances->resize(count);
+  for (std::size_t i = 0; i < count; ++i) (*indices)[i] = static_cast<int>(found[i]);
+}
+
+}  // namespace vb::morph

@@ -1,0 +1,32 @@
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace vb::morph {
+
+/// A kd-tree (nanoflann) over the columns of a 3 by N matrix, for nearest-neighbour queries.
+/// Holds a reference to the points: they must outlive the index and not change.
+class PointIndex {
+ public:
+  explicit PointIndex(const Eigen::Matrix3Xd& points);
+  ~PointIndex();
+  PointIndex(const PointIndex&) = delete;
+  PointIndex& operator=(const PointIndex&) = delete;
+
+  /// Index of the point nearest to @p q. @pre the index holds at least one point.
+  int Nearest(const Eigen::Vector3d& q) const;
+  /// The (up to) @p k nearest points to @p q, nearest first, with squared distances.
+  void Nearest(const Eigen::Vector3d& q, int k, std::vector<int>* indices, std::vector<double>* squared_distances) const;
+
+  int size() const { return static_cast<int>(points_.cols()); }
+
+ private:
+  struct Tree;
+  const Eigen::Matrix3Xd& points_;
+  std::unique_ptr<Tree> tree_;
+};
+
+}  // namespace vb::morph

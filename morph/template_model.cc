@@ -1,0 +1,50 @@
+#include "morph/template_model.h"
+
+#include <chrono>
+
+#include "io/error.h"
+#include "io/mesh_measures.h"
+#include "io/mesh_topology.h"
+#include "morph/cloud_skeleton.h"
+#include "morph/mcf_skeleton.h"
+
+namespace vb::morph {
+
+TemplateModel BuildTemplateModel(const io::TriangleMesh& mesh, const TemplateModelOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  if (mesh.num_vertices() < 4 || mesh.num_faces() < 4) throw InputError("template: too small to be a closed mesh");
+  if (!mesh.V.allFinite()) throw InputError("template: non-finite vertex coordinates");
+  const io::TopologyReport topology = io::AnalyzeTopology(mesh);
+  if (!topology.is_closed_manifold() || !topology.is_consistently_oriented() || topology.components != 1) {
+    throw InputError("template: must be one closed, consistently oriented 2-manifold; it has " + topology.Describe());
+  }
+  TemplateModel m;
+  m.mesh = mesh;
+  if (io::SignedVolume(m.mesh) < 0.0) m.mesh.F.row(1).swap(m.mesh.F.row(2));  // make it face outwards
+  m.mesh.N = io::VertexNormals(m.mesh);
+  m.centre = 0.5 * (mesh.V.rowwise().maxCoeff() + mesh.V.rowwise().minCoeff());
+  m.size = io::BoundingBoxDiagonal(mesh.V);
+  if (!(m.size > 0.0)) throw InputError("template: has no extent");
+  m.V = (mesh.V.colwise() - m.centre) / m.size;
+
+  io::TriangleMesh normalised = m.mesh;
+  normalised.V = m.V;
+  m.skeleton = MeanCurvatureFlowSkeleton(normalised);
+  m.features = options.feature_source == TemplateModelOptions::FeatureSource::kLevelSet
+                   ? ExtractFeatureNodes(CloudSkeleton(m.V), options.features)
+                   : ExtractFeatureNodes(m.skeleton, options.features);
+  if (m.features.num_terminals() + m.features.num_junctions() < 3) {
+    throw InputError("template: its skeleton has " + std::to_string(m.features.num_terminals() + m.features.num_junctions()) +
+                     " feature nodes; at least three are needed to fix a pose");
+  }
+  m.graph = BuildDeformationGraph(normalised, options.graph);
+  m.vertex_weights = VertexWeights(normalised, m.graph, options.graph);
+  m.terminal_weights = PointWeights(m.features.terminals, m.features.terminal_support, m.graph, m.vertex_weights,
+                                    options.graph.vertex_neighbours);
+  m.junction_weights = PointWeights(m.features.junctions, m.features.junction_support, m.graph, m.vertex_weights,
+                                    options.graph.vertex_neighbours);
+  m.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return m;
+}
+
+}  // namespace vb::morph

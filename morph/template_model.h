@@ -1,0 +1,48 @@
+#pragma once
+
+#include <Eigen/Core>
+
+#include "io/triangle_mesh.h"
+#include "morph/deformation_graph.h"
+#include "morph/skeleton_graph.h"
+
+namespace vb::morph {
+
+/// Lengths are fractions of the template's bounding-box diagonal.
+struct TemplateModelOptions {
+  /// Where the template's feature nodes come from: its mean curvature flow skeleton, or the
+  /// same level-set skeleton the targets get (applied to the template's vertices), which
+  /// places junctions the same way on both sides.
+  enum class FeatureSource { kMeanCurvatureFlow, kLevelSet };
+  FeatureSource feature_source = FeatureSource::kMeanCurvatureFlow;
+  FeatureOptions features;
+  DeformationGraphOptions graph;
+};
+
+/// Everything about a template that does not depend on the target, computed once (offline,
+/// then loaded by the daemon): libigl's precomputation half. All positions are in the
+/// template's normalised frame, x_hat = (x - centre) / size, so every threshold is
+/// relative to the template's size.
+struct TemplateModel {
+  io::TriangleMesh mesh;        ///< as given (original units), with normals
+  Eigen::Vector3d centre;       ///< bounding-box centre
+  double size = 1.0;            ///< bounding-box diagonal
+  Eigen::Matrix3Xd V;           ///< normalised vertex positions
+  SkeletonGraph skeleton;       ///< mean curvature flow skeleton, normalised
+  FeatureNodes features;        ///< pruned terminals and junctions, normalised
+  DeformationGraph graph;       ///< on the normalised mesh
+  NodeWeights vertex_weights;
+  NodeWeights terminal_weights;
+  NodeWeights junction_weights;
+  double seconds = 0.0;         ///< time to build
+
+  Eigen::Vector3d Normalise(const Eigen::Vector3d& x) const { return (x - centre) / size; }
+  Eigen::Vector3d Denormalise(const Eigen::Vector3d& x) const { return x * size + centre; }
+};
+
+/// Builds the model. @throws InputError naming the defect when the mesh is not a closed,
+/// consistently oriented, connected 2-manifold, or its skeleton has fewer than three
+/// feature nodes.
+TemplateModel BuildTemplateModel(const io::TriangleMesh& mesh, const TemplateModelOptions& options = {});
+
+}  // namespace vb::morph

@@ -1,0 +1,78 @@
+#include "morph/embedded_deformation.h"
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+#include "tests/support/test_meshes.h"
+
+namespace vb::morph {
+namespace {
+
+class EmbeddedDeformationTest : public ::testing::Test {
+ protected:
+  EmbeddedDeformationTest() : mesh_(test::Sphere(1.0, 4)) {
+    graph_ = BuildDeformationGraph(mesh_, options_);
+    weights_ = VertexWeights(mesh_, graph_, options_);
+  }
+  PointConstraint Constraint(int vertex, const Eigen::Vector3d& target) const {
+    PointConstraint c;
+    c.rest = mesh_.V.col(vertex);
+    c.target = target;
+    for (Eigen::Index k = 0; k < weights_.nodes.rows(); ++k) {
+      c.nodes.push_back(weights_.nodes(k, vertex));
+      c.weights.push_back(weights_.weights(k, vertex));
+    }
+    return c;
+  }
+  io::TriangleMesh mesh_;
+  DeformationGraphOptions options_;
+  DeformationGraph graph_;
+  NodeWeights weights_;
+};
+
+TEST_F(EmbeddedDeformationTest, WithoutDataNothingMoves) {
+  DeformationState state = DeformationState::Identity(graph_.num_nodes());
+  const SolveSummary summary = SolveEmbeddedDeformation(graph_, {}, {}, &state);
+  EXPECT_TRUE(summary.usable);
+  EXPECT_LT((DeformPoints(graph_, weights_, mesh_.V, state) - mesh_.V).cwiseAbs().maxCoeff(), 1e-9);
+}
+
+TEST_F(EmbeddedDeformationTest, RecoversARigidMotion) {
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  const Eigen::Vector3d t(0.3, -0.2, 0.5);
+  std::vector<PointConstraint> constraints;
+  for (int v = 0; v < mesh_.num_vertices(); v += 25) constraints.push_back(Constraint(v, R * mesh_.V.col(v) + t));
+  DeformationState state = DeformationState::Identity(graph_.num_nodes());
+  const SolveSummary summary = SolveEmbeddedDeformation(graph_, constraints, {}, &state);
+  ASSERT_TRUE(summary.usable) << summary.message;
+  const Eigen::Matrix3Xd moved = DeformPoints(graph_, weights_, mesh_.V, state);
+  const Eigen::Matrix3Xd expected = (R * mesh_.V).colwise() + t;
+  EXPECT_LT((moved - expected).colwise().norm().maxCoeff(), 0.01);
+}
+
+TEST_F(EmbeddedDeformationTest, PullingOnePointMovesItsNeighbourhoodNotTheFarSide) {
+  Eigen::Index top = 0, bottom = 0;
+  mesh_.V.row(2).maxCoeff(&top);
+  mesh_.V.row(2).minCoeff(&bottom);
+  const std::vector<PointConstraint> constraints = {Constraint(static_cast<int>(top), mesh_.V.col(top) + Eigen::Vector3d(0, 0, 0.3)),
+                                                    Constraint(static_cast<int>(bottom), mesh_.V.col(bottom))};
+  DeformationState state = DeformationState::Identity(graph_.num_nodes());
+  ASSERT_TRUE(SolveEmbeddedDeformation(graph_, constraints, {}, &state).usable);
+  const Eigen::Matrix3Xd moved = DeformPoints(graph_, weights_, mesh_.V, state);
+  EXPECT_NEAR(moved(2, top) - mesh_.V(2, top), 0.3, 0.03);
+  EXPECT_LT((moved.col(bottom) - mesh_.V.col(bottom)).norm(), 0.03);
+}
+
+TEST_F(EmbeddedDeformationTest, PointToPlaneOnlyActsAlongTheNormal) {
+  // Eq. (14): a target 0.2 away sideways but on the point's tangent plane changes nothing.
+  Eigen::Index top = 0;
+  mesh_.V.row(2).maxCoeff(&top);
+  PointConstraint c = Constraint(static_cast<int>(top), mesh_.V.col(top) + Eigen::Vector3d(0.2, 0, 0));
+  c.normal = Eigen::Vector3d::UnitZ();
+  DeformationState state = DeformationState::Identity(graph_.num_nodes());
+  ASSERT_TRUE(SolveEmbeddedDeformation(graph_, std::vector<PointConstraint>{c}, {}, &state).usable);
+  EXPECT_LT((DeformPoints(graph_, weights_, mesh_.V, state) - mesh_.V).cwiseAbs().maxCoeff(), 1e-6);
+}
+
+}  // namespace
+}  // namespace vb::morph

@@ -1,0 +1,49 @@
+#include "morph/template_model.h"
+
+#include <gtest/gtest.h>
+
+#include "io/error.h"
+#include "tests/support/implicit_shapes.h"
+#include "tests/support/test_meshes.h"
+
+namespace vb::morph {
+namespace {
+
+void ExpectRejected(const io::TriangleMesh& mesh, const char* fragment) {
+  try {
+    BuildTemplateModel(mesh);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+  }
+}
+
+TEST(TemplateModelTest, RefusesMeshesItCannotMorph) {
+  io::TriangleMesh open = test::Box();
+  open.F.conservativeResize(3, 11);
+  ExpectRejected(open, "boundary edges");
+  io::TriangleMesh flipped = test::Box();
+  std::swap(flipped.F(1, 3), flipped.F(2, 3));
+  ExpectRejected(flipped, "inconsistently oriented");
+  io::TriangleMesh bad = test::Box();
+  bad.V(0, 2) = std::nan("");
+  ExpectRejected(bad, "non-finite");
+  ExpectRejected(test::Sphere(1.0, 3), "feature nodes");  // a ball has no limbs
+}
+
+TEST(TemplateModelTest, NormalisesAndPrecomputesEverything) {
+  io::TriangleMesh y = test::YShape();
+  y.V = (y.V * 250.0).array() + 1000.0;  // any units, anywhere
+  const TemplateModel m = BuildTemplateModel(y);
+  EXPECT_NEAR((m.V.rowwise().maxCoeff() - m.V.rowwise().minCoeff()).norm(), 1.0, 1e-12);
+  EXPECT_EQ(m.features.num_terminals(), 3);
+  EXPECT_EQ(m.features.num_junctions(), 1);
+  EXPECT_GT(m.graph.num_nodes(), 20);
+  EXPECT_EQ(m.vertex_weights.nodes.cols(), y.num_vertices());
+  EXPECT_EQ(m.terminal_weights.nodes.cols(), 3);
+  for (Eigen::Index t = 0; t < 3; ++t) EXPECT_NEAR(m.terminal_weights.weights.col(t).sum(), 1.0, 1e-12);
+  EXPECT_TRUE(m.mesh.has_normals());
+}
+
+}  // namespace
+}  // namespace vb::morph
