@@ -5,26 +5,13 @@
 #include <numeric>
 #include <vector>
 
+#include <boost/iterator/counting_iterator.hpp>
+#include <boost/pending/disjoint_sets.hpp>
+
 #include "io/error.h"
 
 namespace vb::io {
 namespace {
-
-class DisjointSets {
- public:
-  explicit DisjointSets(int n) : parent_(static_cast<std::size_t>(n)) { std::iota(parent_.begin(), parent_.end(), 0); }
-  int Find(int x) {
-    while (parent_[static_cast<std::size_t>(x)] != x) {
-      parent_[static_cast<std::size_t>(x)] = parent_[static_cast<std::size_t>(parent_[static_cast<std::size_t>(x)])];
-      x = parent_[static_cast<std::size_t>(x)];
-    }
-    return x;
-  }
-  void Join(int a, int b) { parent_[static_cast<std::size_t>(Find(a))] = Find(b); }
-
- private:
-  std::vector<int> parent_;
-};
 
 struct HalfEdge {
   int lo, hi;    // undirected key
@@ -75,7 +62,7 @@ TopologyReport AnalyzeTopology(const TriangleMesh& mesh) {
   r.unreferenced_vertices = static_cast<int>(std::count(uses.begin(), uses.end(), 0));
   std::sort(half_edges.begin(), half_edges.end());
 
-  DisjointSets components(r.num_faces);
+  boost::disjoint_sets_with_storage<> components(static_cast<std::size_t>(r.num_faces));
   // Per vertex, faces that meet along an edge through that vertex belong to one fan.
   std::vector<std::pair<int, std::array<int, 2>>> vertex_links;  // (vertex, {face, face})
   vertex_links.reserve(half_edges.size() * 2);
@@ -92,7 +79,7 @@ TopologyReport AnalyzeTopology(const TriangleMesh& mesh) {
       ++r.inconsistent_edges;
     }
     for (std::size_t k = i + 1; k < j; ++k) {
-      components.Join(half_edges[i].face, half_edges[k].face);
+      components.union_set(half_edges[i].face, half_edges[k].face);
       if (count == 2) {
         vertex_links.push_back({half_edges[i].lo, {half_edges[i].face, half_edges[k].face}});
         vertex_links.push_back({half_edges[i].hi, {half_edges[i].face, half_edges[k].face}});
@@ -100,9 +87,7 @@ TopologyReport AnalyzeTopology(const TriangleMesh& mesh) {
     }
     i = j;
   }
-  for (int f = 0; f < r.num_faces; ++f) {
-    if (components.Find(f) == f) ++r.components;
-  }
+  r.components = static_cast<int>(components.count_sets(boost::counting_iterator<int>(0), boost::counting_iterator<int>(r.num_faces)));
 
   // A vertex is manifold when its incident faces, linked through shared edges at the vertex,
   // form one group. Count groups per vertex with a union-find over face slots.
@@ -115,16 +100,15 @@ TopologyReport AnalyzeTopology(const TriangleMesh& mesh) {
   for (int v = 0; v < r.num_vertices; ++v) {
     const auto& faces = faces_of_vertex[static_cast<std::size_t>(v)];
     if (faces.empty()) continue;
-    DisjointSets fan(static_cast<int>(faces.size()));
+    boost::disjoint_sets_with_storage<> fan(faces.size());
     auto slot = [&faces](int face) {
       return static_cast<int>(std::lower_bound(faces.begin(), faces.end(), face) - faces.begin());
     };
     for (; link < vertex_links.size() && vertex_links[link].first == v; ++link) {
-      fan.Join(slot(vertex_links[link].second[0]), slot(vertex_links[link].second[1]));
+      fan.union_set(slot(vertex_links[link].second[0]), slot(vertex_links[link].second[1]));
     }
-    int groups = 0;
-    for (int i = 0; i < static_cast<int>(faces.size()); ++i) groups += fan.Find(i) == i ? 1 : 0;
-    if (groups > 1) ++r.nonmanifold_vertices;
+    const auto fans = fan.count_sets(boost::counting_iterator<std::size_t>(0), boost::counting_iterator<std::size_t>(faces.size()));
+    if (fans > 1) ++r.nonmanifold_vertices;
   }
   return r;
 }

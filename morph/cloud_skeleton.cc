@@ -10,6 +10,7 @@
 #include <boost/graph/connected_components.hpp>
 #include <boost/graph/dijkstra_shortest_paths.hpp>
 #include <boost/graph/kruskal_min_spanning_tree.hpp>
+#include <boost/pending/disjoint_sets.hpp>
 
 #include "io/error.h"
 #include "io/mesh_measures.h"
@@ -51,20 +52,12 @@ Eigen::Matrix3Xd Downsample(const Eigen::Matrix3Xd& points, double cell, std::ve
   return out;
 }
 
-int Find(std::vector<int>& parent, int x) {
-  while (parent[static_cast<std::size_t>(x)] != x) {
-    parent[static_cast<std::size_t>(x)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(x)])];
-    x = parent[static_cast<std::size_t>(x)];
-  }
-  return x;
-}
-
 }  // namespace
 
 SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOptions& options) {
-  if (input.cols() < 50) throw InputError("skeleton: the target has " + std::to_string(input.cols()) + " points, fewer than 50");
+  if (input.cols() < 50) throw InputError("skeleton: " + std::to_string(input.cols()) + " points, fewer than 50");
   const double size = io::BoundingBoxDiagonal(input);
-  if (!(size > 0.0)) throw InputError("skeleton: the target has no extent");
+  if (!(size > 0.0)) throw InputError("skeleton: the points have no extent");
 
   std::vector<std::vector<int>> members;
   Eigen::Matrix3Xd points = Downsample(input, options.voxel * size, &members);
@@ -116,23 +109,23 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
   std::vector<bool> keep(static_cast<std::size_t>(n));
   const int min_piece = std::max(5, static_cast<int>(options.min_piece * n));
   for (int i = 0; i < n; ++i) keep[static_cast<std::size_t>(i)] = piece_size[static_cast<std::size_t>(piece[static_cast<std::size_t>(i)])] >= min_piece;
-  std::vector<int> joined(static_cast<std::size_t>(num_pieces));
-  std::iota(joined.begin(), joined.end(), 0);
+  boost::disjoint_sets_with_storage<> joined(static_cast<std::size_t>(num_pieces));
+  auto group_of = [&](int i) { return static_cast<int>(joined.find_set(piece[static_cast<std::size_t>(i)])); };
   for (bool merged = true; merged;) {
     merged = false;
     // Closest pair between the group of the first kept point and everything else kept.
     int first = -1;
     for (int i = 0; i < n && first < 0; ++i) first = keep[static_cast<std::size_t>(i)] ? i : -1;
     if (first < 0) break;
-    const int group = Find(joined, piece[static_cast<std::size_t>(first)]);
+    const int group = group_of(first);
     double best = std::numeric_limits<double>::infinity();
     std::array<int, 2> pair{-1, -1};
     for (int i = 0; i < n; ++i) {
-      if (!keep[static_cast<std::size_t>(i)] || Find(joined, piece[static_cast<std::size_t>(i)]) == group) continue;
+      if (!keep[static_cast<std::size_t>(i)] || group_of(i) == group) continue;
       index.Nearest(points.col(i), 48, &found, &d2);
       for (std::size_t k = 0; k < found.size(); ++k) {
         const int j = found[k];
-        if (keep[static_cast<std::size_t>(j)] && Find(joined, piece[static_cast<std::size_t>(j)]) == group && d2[k] < best) {
+        if (keep[static_cast<std::size_t>(j)] && group_of(j) == group && d2[k] < best) {
           best = d2[k];
           pair = {i, j};
         }
@@ -141,9 +134,9 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
     if (pair[0] < 0) {
       // No piece within reach of the kd-query: fall back to an exhaustive search.
       for (int i = 0; i < n; ++i) {
-        if (!keep[static_cast<std::size_t>(i)] || Find(joined, piece[static_cast<std::size_t>(i)]) == group) continue;
+        if (!keep[static_cast<std::size_t>(i)] || group_of(i) == group) continue;
         for (int j = 0; j < n; ++j) {
-          if (!keep[static_cast<std::size_t>(j)] || Find(joined, piece[static_cast<std::size_t>(j)]) != group) continue;
+          if (!keep[static_cast<std::size_t>(j)] || group_of(j) != group) continue;
           const double dd = (points.col(i) - points.col(j)).squaredNorm();
           if (dd < best) {
             best = dd;
@@ -154,7 +147,7 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
     }
     if (pair[0] >= 0) {
       boost::add_edge(static_cast<std::size_t>(pair[0]), static_cast<std::size_t>(pair[1]), std::sqrt(best), graph);
-      joined[static_cast<std::size_t>(Find(joined, piece[static_cast<std::size_t>(pair[0])]))] = group;
+      joined.union_set(piece[static_cast<std::size_t>(pair[0])], group);
       merged = true;
     }
   }
@@ -184,12 +177,24 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
       band_of[static_cast<std::size_t>(i)] = static_cast<int>(distance[static_cast<std::size_t>(i)] / band);
     }
   }
-  std::vector<int> parent(static_cast<std::size_t>(n));
-  std::iota(parent.begin(), parent.end(), 0);
+  boost::disjoint_sets_with_storage<> pieces(static_cast<std::size_t>(n));
+  auto piece_of = [&](int i) { return static_cast<int>(pieces.find_set(i)); };
   for (const auto e : boost::make_iterator_range(boost::edges(graph))) {
     const int a = static_cast<int>(boost::source(e, graph)), b = static_cast<int>(boost::target(e, graph));
     if (band_of[static_cast<std::size_t>(a)] >= 0 && band_of[static_cast<std::size_t>(a)] == band_of[static_cast<std::size_t>(b)]) {
-      parent[static_cast<std::size_t>(Find(parent, a))] = Find(parent, b);
+      pieces.union_set(a, b);
+    }
+  }
+  // A band is only a few samples thick, so a ring around a limb can fall apart into arcs
+  // that touch only through the neighbouring bands; join same-band samples closer than
+  // half a band. (Pieces of one band on different limbs are farther apart than that.)
+  for (int i = 0; i < n; ++i) {
+    if (band_of[static_cast<std::size_t>(i)] < 0) continue;
+    index.Nearest(points.col(i), 2 * options.neighbours, &found, &d2);
+    for (std::size_t k = 1; k < found.size(); ++k) {
+      if (band_of[static_cast<std::size_t>(found[k])] == band_of[static_cast<std::size_t>(i)] && d2[k] < 0.25 * band * band) {
+        pieces.union_set(i, found[k]);
+      }
     }
   }
   // Fold noise-sized pieces into the neighbouring piece of their band they share the most
@@ -197,7 +202,7 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
   {
     std::unordered_map<int, int> piece_points;
     for (int i = 0; i < n; ++i) {
-      if (band_of[static_cast<std::size_t>(i)] >= 0) ++piece_points[Find(parent, i)];
+      if (band_of[static_cast<std::size_t>(i)] >= 0) ++piece_points[piece_of(i)];
     }
     std::vector<int> sizes;
     for (const auto& [root, count] : piece_points) sizes.push_back(count);
@@ -208,7 +213,7 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
       for (const auto e : boost::make_iterator_range(boost::edges(graph))) {
         const int a = static_cast<int>(boost::source(e, graph)), b = static_cast<int>(boost::target(e, graph));
         if (band_of[static_cast<std::size_t>(a)] < 0 || band_of[static_cast<std::size_t>(b)] < 0) continue;
-        const int ra = Find(parent, a), rb = Find(parent, b);
+        const int ra = piece_of(a), rb = piece_of(b);
         // Only pieces side by side in one band: a limb's last, small band piece continues a
         // chain from the band before and must stay a tip.
         if (ra == rb || band_of[static_cast<std::size_t>(a)] != band_of[static_cast<std::size_t>(b)]) continue;
@@ -224,7 +229,7 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
             best_edges = edges;
           }
         }
-        if (best >= 0) parent[static_cast<std::size_t>(Find(parent, root))] = Find(parent, best);
+        if (best >= 0) pieces.union_set(root, best);
       }
     }
   }
@@ -234,7 +239,7 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
   std::vector<int> node_of(static_cast<std::size_t>(n), -1);
   for (int i = 0; i < n; ++i) {
     if (band_of[static_cast<std::size_t>(i)] < 0) continue;
-    const auto [it, inserted] = node_of_root.try_emplace(Find(parent, i), static_cast<int>(sums.size()));
+    const auto [it, inserted] = node_of_root.try_emplace(piece_of(i), static_cast<int>(sums.size()));
     if (inserted) {
       sums.emplace_back(Eigen::Vector3d::Zero());
       skeleton.support.emplace_back();

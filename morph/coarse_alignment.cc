@@ -70,7 +70,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   try {
     skeleton = CloudSkeleton(target, options.skeleton);
   } catch (const InputError& e) {
-    result.error = e.what();
+    result.error = std::string("target ") + e.what();
     return result;
   }
   FeatureOptions features = options.features;

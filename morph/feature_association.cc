@@ -124,46 +124,27 @@ double Permutations(int n, int k) {
   return p;
 }
 
-// Keeps the @p keep junctions nearest the centroid of all features.
-FeatureNodes TrimJunctions(const FeatureNodes& f, int keep) {
-  if (f.num_junctions() <= keep) return f;
-  const Eigen::Vector3d centre = Stack(f).rowwise().mean();
-  std::vector<int> order(static_cast<std::size_t>(f.num_junctions()));
-  for (int i = 0; i < f.num_junctions(); ++i) order[static_cast<std::size_t>(i)] = i;
+// Keeps @p keep columns of @p points (and their support), ordered by distance to @p centre,
+// farthest first when @p farthest: limb ends are the most telling terminals, central nodes
+// the most reliable junctions.
+void KeepByDistance(const Eigen::Vector3d& centre, int keep, bool farthest, Eigen::Matrix3Xd* points,
+                    std::vector<std::vector<int>>* support) {
+  if (points->cols() <= keep) return;
+  std::vector<int> order(static_cast<std::size_t>(points->cols()));
+  for (int i = 0; i < points->cols(); ++i) order[static_cast<std::size_t>(i)] = i;
   std::sort(order.begin(), order.end(), [&](int x, int y) {
-    return (f.junctions.col(x) - centre).squaredNorm() < (f.junctions.col(y) - centre).squaredNorm();
+    const double dx = (points->col(x) - centre).squaredNorm(), dy = (points->col(y) - centre).squaredNorm();
+    return farthest ? dx > dy : dx < dy;
   });
-  FeatureNodes out = f;
-  out.junctions.resize(3, keep);
-  out.junction_support.clear();
+  Eigen::Matrix3Xd kept(3, keep);
+  std::vector<std::vector<int>> kept_support;
   for (int i = 0; i < keep; ++i) {
-    out.junctions.col(i) = f.junctions.col(order[static_cast<std::size_t>(i)]);
-    if (static_cast<std::size_t>(order[static_cast<std::size_t>(i)]) < f.junction_support.size()) {
-      out.junction_support.push_back(f.junction_support[static_cast<std::size_t>(order[static_cast<std::size_t>(i)])]);
-    }
+    const auto source = static_cast<std::size_t>(order[static_cast<std::size_t>(i)]);
+    kept.col(i) = points->col(static_cast<Eigen::Index>(source));
+    if (source < support->size()) kept_support.push_back((*support)[source]);
   }
-  return out;
-}
-
-// Keeps the @p keep terminals farthest from the centroid of all features.
-FeatureNodes TrimTerminals(const FeatureNodes& f, int keep) {
-  if (f.num_terminals() <= keep) return f;
-  const Eigen::Vector3d centre = Stack(f).rowwise().mean();
-  std::vector<int> order(static_cast<std::size_t>(f.num_terminals()));
-  for (int i = 0; i < f.num_terminals(); ++i) order[static_cast<std::size_t>(i)] = i;
-  std::sort(order.begin(), order.end(), [&](int x, int y) {
-    return (f.terminals.col(x) - centre).squaredNorm() > (f.terminals.col(y) - centre).squaredNorm();
-  });
-  FeatureNodes out = f;
-  out.terminals.resize(3, keep);
-  out.terminal_support.clear();
-  for (int i = 0; i < keep; ++i) {
-    out.terminals.col(i) = f.terminals.col(order[static_cast<std::size_t>(i)]);
-    if (static_cast<std::size_t>(order[static_cast<std::size_t>(i)]) < f.terminal_support.size()) {
-      out.terminal_support.push_back(f.terminal_support[static_cast<std::size_t>(order[static_cast<std::size_t>(i)])]);
-    }
-  }
-  return out;
+  *points = std::move(kept);
+  *support = std::move(kept_support);
 }
 
 }  // namespace
@@ -183,9 +164,11 @@ std::vector<Association> AssociateFeatureNodes(const FeatureNodes& from_in, cons
     FeatureNodes& larger_t = from.num_terminals() >= to.num_terminals() ? from : to;
     FeatureNodes& larger_j = from.num_junctions() >= to.num_junctions() ? from : to;
     if (larger_t.num_terminals() > 4) {
-      larger_t = TrimTerminals(larger_t, larger_t.num_terminals() - 1);
+      KeepByDistance(Stack(larger_t).rowwise().mean(), larger_t.num_terminals() - 1, true, &larger_t.terminals,
+                     &larger_t.terminal_support);
     } else if (larger_j.num_junctions() > 1) {
-      larger_j = TrimJunctions(larger_j, larger_j.num_junctions() - 1);
+      KeepByDistance(Stack(larger_j).rowwise().mean(), larger_j.num_junctions() - 1, false, &larger_j.junctions,
+                     &larger_j.junction_support);
     } else {
       break;  // at most 4! * 5 * 2 pairings: small
     }

@@ -7,6 +7,8 @@
 #include <numeric>
 #include <queue>
 
+#include <boost/pending/disjoint_sets.hpp>
+
 namespace vb::morph {
 
 std::vector<int> SkeletonGraph::Degrees() const {
@@ -98,9 +100,7 @@ FeatureNodes ExtractFeatureNodes(const SkeletonGraph& skeleton, const FeatureOpt
     if (d == 1) terminals.push_back(v);
     if (d >= 3) junctions.push_back(v);
   }
-  std::vector<int> group(junctions.size());
-  std::iota(group.begin(), group.end(), 0);
-  std::function<int(int)> find = [&](int x) { return group[static_cast<std::size_t>(x)] == x ? x : group[static_cast<std::size_t>(x)] = find(group[static_cast<std::size_t>(x)]); };
+  boost::disjoint_sets_with_storage<> group(junctions.size());
   for (std::size_t a = 0; a < junctions.size(); ++a) {
     // Bounded Dijkstra from junction a over the living skeleton.
     std::vector<double> distance(static_cast<std::size_t>(n), std::numeric_limits<double>::infinity());
@@ -120,7 +120,7 @@ FeatureNodes ExtractFeatureNodes(const SkeletonGraph& skeleton, const FeatureOpt
     }
     for (std::size_t b = a + 1; b < junctions.size(); ++b) {
       if (distance[static_cast<std::size_t>(junctions[b])] <= options.junction_merge_distance) {
-        group[static_cast<std::size_t>(find(static_cast<int>(b)))] = find(static_cast<int>(a));
+        group.union_set(a, b);
       }
     }
   }
@@ -139,7 +139,7 @@ FeatureNodes ExtractFeatureNodes(const SkeletonGraph& skeleton, const FeatureOpt
   std::vector<int> merged_count;
   std::vector<int> slot(junctions.size(), -1);
   for (std::size_t j = 0; j < junctions.size(); ++j) {
-    const auto root = static_cast<std::size_t>(find(static_cast<int>(j)));
+    const auto root = static_cast<std::size_t>(group.find_set(j));
     if (slot[root] < 0) {
       slot[root] = static_cast<int>(merged_position.size());
       merged_position.emplace_back(Eigen::Vector3d::Zero());

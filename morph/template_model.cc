@@ -29,10 +29,9 @@ TemplateModel BuildTemplateModel(const io::TriangleMesh& mesh, const TemplateMod
 
   io::TriangleMesh normalised = m.mesh;
   normalised.V = m.V;
-  m.skeleton = MeanCurvatureFlowSkeleton(normalised);
-  m.features = options.feature_source == TemplateModelOptions::FeatureSource::kLevelSet
-                   ? ExtractFeatureNodes(CloudSkeleton(m.V), options.features)
-                   : ExtractFeatureNodes(m.skeleton, options.features);
+  m.skeleton = options.feature_source == TemplateModelOptions::FeatureSource::kLevelSet ? CloudSkeleton(m.V)
+                                                                                      : MeanCurvatureFlowSkeleton(normalised);
+  m.features = ExtractFeatureNodes(m.skeleton, options.features);
   if (m.features.num_terminals() + m.features.num_junctions() < 3) {
     throw InputError("template: its skeleton has " + std::to_string(m.features.num_terminals() + m.features.num_junctions()) +
                      " feature nodes; at least three are needed to fix a pose");

@@ -159,9 +159,9 @@ int RunBenchCommand(const BenchOptions& options) {
 
   const perception::CarcassTemplate carcass = perception::BuildCarcassTemplate();
   morph::TemplateModelOptions model_options;
-  if (options.template_features == "levelset") {
-    model_options.feature_source = morph::TemplateModelOptions::FeatureSource::kLevelSet;
-  } else if (options.template_features != "mcf") {
+  if (options.template_features == "mcf") {
+    model_options.feature_source = morph::TemplateModelOptions::FeatureSource::kMeanCurvatureFlow;
+  } else if (options.template_features != "levelset") {
     throw InputError("bench: --template-features: '" + options.template_features + "' is neither 'mcf' nor 'levelset'");
   }
   const morph::TemplateModel lamb = morph::BuildTemplateModel(carcass.mesh, model_options);

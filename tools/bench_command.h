@@ -14,7 +14,7 @@ struct BenchOptions {
   bool clouds = false;                  ///< also sampled clouds with missing regions
   std::vector<std::filesystem::path> shapes;  ///< extra closed meshes, re-posed by bends
   int shape_pairs = 5;
-  std::string template_features = "mcf";  ///< mcf | levelset
+  std::string template_features = "levelset";  ///< levelset | mcf
   std::filesystem::path csv = "bench_coarse.csv";
 };
 

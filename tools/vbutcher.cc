@@ -46,7 +46,7 @@ int main(int argc, char** argv) {
   bench_cmd->add_flag("--clouds", bench.clouds, "Also sampled clouds with missing regions");
   bench_cmd->add_option("--shapes", bench.shapes, "Extra closed meshes (e.g. CGAL's cow.off), re-posed by bends")->check(CLI::ExistingFile);
   bench_cmd->add_option("--shape-pairs", bench.shape_pairs, "Targets per extra shape and noise level")->capture_default_str();
-  bench_cmd->add_option("--template-features", bench.template_features, "mcf | levelset")->capture_default_str();
+  bench_cmd->add_option("--template-features", bench.template_features, "Template skeleton: levelset | mcf")->capture_default_str();
   bench_cmd->add_option("--csv", bench.csv, "One row per morph")->capture_default_str();
 
   CLI11_PARSE(app, argc, argv);
