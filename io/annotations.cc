@@ -1,10 +1,10 @@
 #include "io/annotations.h"
 
+#include <yaml-cpp/yaml.h>
+
 #include <cmath>
 #include <fstream>
 #include <set>
-
-#include <yaml-cpp/yaml.h>
 
 #include "io/error.h"
 
@@ -15,12 +15,15 @@ class YamlReader {
  public:
   explicit YamlReader(std::string source) : source_(std::move(source)) {}
 
-  [[noreturn]] void Fail(const YAML::Node& node, const std::string& key, const std::string& message) const {
-    const std::string line = node.IsDefined() && node.Mark().line >= 0 ? std::to_string(node.Mark().line + 1) : "?";
+  [[noreturn]] void Fail(const YAML::Node& node, const std::string& key,
+                         const std::string& message) const {
+    const std::string line =
+        node.IsDefined() && node.Mark().line >= 0 ? std::to_string(node.Mark().line + 1) : "?";
     throw InputError(source_ + ":" + line + ": " + key + ": " + message);
   }
 
-  YAML::Node Child(const YAML::Node& parent, const std::string& name, const std::string& key) const {
+  YAML::Node Child(const YAML::Node& parent, const std::string& name,
+                   const std::string& key) const {
     if (!parent.IsMap()) Fail(parent, key, "expected a mapping");
     YAML::Node child = parent[name];
     if (!child.IsDefined()) Fail(parent, key + "." + name, "missing");
@@ -45,7 +48,8 @@ class YamlReader {
 
   Eigen::Vector3d Vector3(const YAML::Node& node, const std::string& key) const {
     if (!node.IsSequence() || node.size() != 3) Fail(node, key, "expected a list of 3 numbers");
-    return {Finite(node[0], key + "[0]"), Finite(node[1], key + "[1]"), Finite(node[2], key + "[2]")};
+    return {Finite(node[0], key + "[0]"), Finite(node[1], key + "[1]"),
+            Finite(node[2], key + "[2]")};
   }
 
  private:
@@ -78,8 +82,9 @@ Annotations LoadAnnotations(const std::filesystem::path& path) {
   }
   const int version = r.Scalar<int>(r.Child(root, "version", ""), "version");
   if (version != Annotations::kFormatVersion) {
-    r.Fail(root["version"], "version", std::to_string(version) + " is not supported; this build reads version " +
-                                           std::to_string(Annotations::kFormatVersion));
+    r.Fail(root["version"], "version",
+           std::to_string(version) + " is not supported; this build reads version " +
+               std::to_string(Annotations::kFormatVersion));
   }
   Annotations a;
   a.template_name = r.Scalar<std::string>(r.Child(root, "template", ""), "template");
@@ -90,7 +95,8 @@ Annotations LoadAnnotations(const std::filesystem::path& path) {
 
   const YAML::Node parts = r.Child(root, "parts", "");
   if (!parts.IsSequence()) r.Fail(parts, "parts", "expected a list of names");
-  for (std::size_t i = 0; i < parts.size(); ++i) a.parts.push_back(r.Scalar<std::string>(parts[i], "parts[" + std::to_string(i) + "]"));
+  for (std::size_t i = 0; i < parts.size(); ++i)
+    a.parts.push_back(r.Scalar<std::string>(parts[i], "parts[" + std::to_string(i) + "]"));
 
   const YAML::Node cuts = r.Child(root, "cuts", "");
   if (!cuts.IsSequence() || cuts.size() == 0) r.Fail(cuts, "cuts", "expected a non-empty list");
@@ -100,15 +106,19 @@ Annotations LoadAnnotations(const std::filesystem::path& path) {
     const YAML::Node node = cuts[c];
     CutAnnotation cut;
     cut.name = r.Scalar<std::string>(r.Child(node, "name", key), key + ".name");
-    if (cut.name.empty() || !names.insert(cut.name).second) r.Fail(node["name"], key + ".name", "'" + cut.name + "' is empty or repeated");
-    if (node["description"]) cut.description = r.Scalar<std::string>(node["description"], key + ".description");
+    if (cut.name.empty() || !names.insert(cut.name).second)
+      r.Fail(node["name"], key + ".name", "'" + cut.name + "' is empty or repeated");
+    if (node["description"])
+      cut.description = r.Scalar<std::string>(node["description"], key + ".description");
     const YAML::Node plane = r.Child(node, "plane", key);
     cut.plane.point = r.Vector3(r.Child(plane, "point", key + ".plane"), key + ".plane.point");
-    const Eigen::Vector3d normal = r.Vector3(r.Child(plane, "normal", key + ".plane"), key + ".plane.normal");
+    const Eigen::Vector3d normal =
+        r.Vector3(r.Child(plane, "normal", key + ".plane"), key + ".plane.normal");
     if (normal.norm() < 1e-9) r.Fail(plane["normal"], key + ".plane.normal", "is zero");
     cut.plane.normal = normal.normalized();
     const YAML::Node line = r.Child(node, "line", key);
-    if (!line.IsSequence() || line.size() < 3) r.Fail(line, key + ".line", "expected a list of at least 3 surface points");
+    if (!line.IsSequence() || line.size() < 3)
+      r.Fail(line, key + ".line", "expected a list of at least 3 surface points");
     for (std::size_t i = 0; i < line.size(); ++i) {
       const std::string pkey = key + ".line[" + std::to_string(i) + "]";
       const YAML::Node p = line[i];
@@ -116,24 +126,29 @@ Annotations LoadAnnotations(const std::filesystem::path& path) {
       SurfacePoint sp;
       sp.face = r.Scalar<int>(p[0], pkey + ".face");
       if (sp.face < 0 || sp.face >= a.face_count) {
-        r.Fail(p[0], pkey + ".face", std::to_string(sp.face) + " is outside [0, " + std::to_string(a.face_count) + ")");
+        r.Fail(p[0], pkey + ".face",
+               std::to_string(sp.face) + " is outside [0, " + std::to_string(a.face_count) + ")");
       }
       for (int k = 0; k < 3; ++k) {
         sp.barycentric[k] = r.Finite(p[k + 1], pkey);
         if (sp.barycentric[k] < -1e-9 || sp.barycentric[k] > 1 + 1e-9) {
-          r.Fail(p[k + 1], pkey, "barycentric coordinate " + p[k + 1].Scalar() + " is outside [0, 1]");
+          r.Fail(p[k + 1], pkey,
+                 "barycentric coordinate " + p[k + 1].Scalar() + " is outside [0, 1]");
         }
       }
       if (std::abs(sp.barycentric.sum() - 1.0) > 1e-6) {
-        r.Fail(p, pkey, "barycentric coordinates sum to " + std::to_string(sp.barycentric.sum()) + ", not 1");
+        r.Fail(
+            p, pkey,
+            "barycentric coordinates sum to " + std::to_string(sp.barycentric.sum()) + ", not 1");
       }
       cut.line.push_back(sp);
     }
     a.cuts.push_back(std::move(cut));
   }
   if (a.parts.size() != a.cuts.size() + 1) {
-    r.Fail(parts, "parts", "has " + std::to_string(a.parts.size()) + " names; " + std::to_string(a.cuts.size()) +
-                               " cuts make " + std::to_string(a.cuts.size() + 1) + " parts");
+    r.Fail(parts, "parts",
+           "has " + std::to_string(a.parts.size()) + " names; " + std::to_string(a.cuts.size()) +
+               " cuts make " + std::to_string(a.cuts.size() + 1) + " parts");
   }
   return a;
 }
@@ -141,7 +156,8 @@ Annotations LoadAnnotations(const std::filesystem::path& path) {
 void SaveAnnotations(const std::filesystem::path& path, const Annotations& a) {
   YAML::Emitter out;
   out.SetDoublePrecision(17);
-  out << YAML::Comment("VirtualButcher cut annotations: planes and closed cut lines on the template");
+  out << YAML::Comment(
+      "VirtualButcher cut annotations: planes and closed cut lines on the template");
   out << YAML::BeginMap;
   out << YAML::Key << "format" << YAML::Value << "vbutcher-annotations";
   out << YAML::Key << "version" << YAML::Value << Annotations::kFormatVersion;
@@ -150,7 +166,9 @@ void SaveAnnotations(const std::filesystem::path& path, const Annotations& a) {
   out << YAML::Key << "face_count" << YAML::Value << a.face_count;
   out << YAML::Key << "parts" << YAML::Value << YAML::Flow << a.parts;
   out << YAML::Key << "cuts" << YAML::Value << YAML::BeginSeq;
-  auto vector3 = [&out](const Eigen::Vector3d& v) { out << YAML::Flow << YAML::BeginSeq << v.x() << v.y() << v.z() << YAML::EndSeq; };
+  auto vector3 = [&out](const Eigen::Vector3d& v) {
+    out << YAML::Flow << YAML::BeginSeq << v.x() << v.y() << v.z() << YAML::EndSeq;
+  };
   for (const CutAnnotation& cut : a.cuts) {
     out << YAML::BeginMap;
     out << YAML::Key << "name" << YAML::Value << cut.name;
@@ -163,7 +181,8 @@ void SaveAnnotations(const std::filesystem::path& path, const Annotations& a) {
     out << YAML::EndMap;
     out << YAML::Key << "line" << YAML::Value << YAML::BeginSeq;
     for (const SurfacePoint& p : cut.line) {
-      out << YAML::Flow << YAML::BeginSeq << p.face << p.barycentric[0] << p.barycentric[1] << p.barycentric[2] << YAML::EndSeq;
+      out << YAML::Flow << YAML::BeginSeq << p.face << p.barycentric[0] << p.barycentric[1]
+          << p.barycentric[2] << YAML::EndSeq;
     }
     out << YAML::EndSeq << YAML::EndMap;
   }
@@ -174,11 +193,13 @@ void SaveAnnotations(const std::filesystem::path& path, const Annotations& a) {
   if (!file) throw std::runtime_error(path.string() + ": write failed");
 }
 
-void CheckAnnotationsFit(const Annotations& a, const TriangleMesh& mesh, const std::string& source) {
+void CheckAnnotationsFit(const Annotations& a, const TriangleMesh& mesh,
+                         const std::string& source) {
   if (a.vertex_count != mesh.num_vertices() || a.face_count != mesh.num_faces()) {
-    throw InputError(source + ": annotations are for a mesh of " + std::to_string(a.vertex_count) + " vertices and " +
-                     std::to_string(a.face_count) + " faces, but the template has " +
-                     std::to_string(mesh.num_vertices()) + " and " + std::to_string(mesh.num_faces()));
+    throw InputError(source + ": annotations are for a mesh of " + std::to_string(a.vertex_count) +
+                     " vertices and " + std::to_string(a.face_count) +
+                     " faces, but the template has " + std::to_string(mesh.num_vertices()) +
+                     " and " + std::to_string(mesh.num_faces()));
   }
 }
 

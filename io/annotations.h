@@ -59,6 +59,7 @@ void SaveAnnotations(const std::filesystem::path& path, const Annotations& annot
 
 /// @throws InputError naming @p source when the annotations were made for a mesh with other
 ///   vertex or face counts, or name faces @p mesh does not have.
-void CheckAnnotationsFit(const Annotations& annotations, const TriangleMesh& mesh, const std::string& source);
+void CheckAnnotationsFit(const Annotations& annotations, const TriangleMesh& mesh,
+                         const std::string& source);
 
 }  // namespace vb::io

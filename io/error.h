@@ -19,9 +19,9 @@ namespace internal {
 }  // namespace vb
 
 /// Checks an invariant in every build type; a failure is a bug, so it aborts with a message.
-#define VB_DEMAND(condition)                                           \
-  do {                                                                 \
-    if (!(condition)) {                                                \
-      ::vb::internal::DemandFailed(#condition, __FILE__, __LINE__);    \
-    }                                                                  \
+#define VB_DEMAND(condition)                                        \
+  do {                                                              \
+    if (!(condition)) {                                             \
+      ::vb::internal::DemandFailed(#condition, __FILE__, __LINE__); \
+    }                                                               \
   } while (false)

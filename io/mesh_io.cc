@@ -14,7 +14,8 @@ namespace vb::io {
 
 FileFormat FormatFromPath(const std::filesystem::path& path) {
   std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (ext == ".ply") return FileFormat::kPly;
   if (ext == ".off") return FileFormat::kOff;
   if (ext == ".obj") return FileFormat::kObj;
@@ -27,14 +28,21 @@ FileFormat FormatFromPath(const std::filesystem::path& path) {
 TriangleMesh ReadMesh(const std::filesystem::path& path, const ReadLimits& limits) {
   TriangleMesh mesh;
   switch (FormatFromPath(path)) {
-    case FileFormat::kPly: mesh = ReadPly(path, limits); break;
-    case FileFormat::kOff: mesh = ReadOff(path, limits); break;
-    case FileFormat::kObj: mesh = ReadObj(path, limits); break;
+    case FileFormat::kPly:
+      mesh = ReadPly(path, limits);
+      break;
+    case FileFormat::kOff:
+      mesh = ReadOff(path, limits);
+      break;
+    case FileFormat::kObj:
+      mesh = ReadObj(path, limits);
+      break;
     case FileFormat::kPcd:
     case FileFormat::kXyz:
       throw InputError(path.string() + ": holds a point cloud, but a triangle mesh is needed");
   }
-  if (mesh.num_faces() == 0) throw InputError(path.string() + ": has no faces, but a triangle mesh is needed");
+  if (mesh.num_faces() == 0)
+    throw InputError(path.string() + ": has no faces, but a triangle mesh is needed");
   return mesh;
 }
 
@@ -46,7 +54,7 @@ PointCloud ReadCloud(const std::filesystem::path& path, const ReadLimits& limits
   } else if (format == FileFormat::kXyz) {
     cloud = ReadXyz(path, limits);
   } else {
-    TriangleMesh mesh = format == FileFormat::kPly ? ReadPly(path, limits)
+    TriangleMesh mesh = format == FileFormat::kPly   ? ReadPly(path, limits)
                         : format == FileFormat::kOff ? ReadOff(path, limits)
                                                      : ReadObj(path, limits);
     cloud.points = std::move(mesh.V);
@@ -56,18 +64,26 @@ PointCloud ReadCloud(const std::filesystem::path& path, const ReadLimits& limits
   return cloud;
 }
 
-void WriteMesh(const std::filesystem::path& path, const TriangleMesh& mesh, const WriteOptions& options) {
+void WriteMesh(const std::filesystem::path& path, const TriangleMesh& mesh,
+               const WriteOptions& options) {
   switch (FormatFromPath(path)) {
-    case FileFormat::kPly: WritePly(path, mesh, options.ply_encoding); return;
-    case FileFormat::kOff: WriteOff(path, mesh); return;
-    case FileFormat::kObj: WriteObj(path, mesh); return;
+    case FileFormat::kPly:
+      WritePly(path, mesh, options.ply_encoding);
+      return;
+    case FileFormat::kOff:
+      WriteOff(path, mesh);
+      return;
+    case FileFormat::kObj:
+      WriteObj(path, mesh);
+      return;
     case FileFormat::kPcd:
     case FileFormat::kXyz:
       throw InputError(path.string() + ": cannot hold faces; write the mesh as .ply, .off or .obj");
   }
 }
 
-void WriteCloud(const std::filesystem::path& path, const PointCloud& cloud, const WriteOptions& options) {
+void WriteCloud(const std::filesystem::path& path, const PointCloud& cloud,
+                const WriteOptions& options) {
   const FileFormat format = FormatFromPath(path);
   if (format == FileFormat::kPcd) return WritePcd(path, cloud);
   if (format == FileFormat::kXyz) return WriteXyz(path, cloud);

@@ -30,9 +30,11 @@ struct WriteOptions {
 
 /// Writes a mesh as PLY, OFF or OBJ by extension.
 /// @throws InputError for a cloud-only extension; std::runtime_error when writing fails.
-void WriteMesh(const std::filesystem::path& path, const TriangleMesh& mesh, const WriteOptions& options = {});
+void WriteMesh(const std::filesystem::path& path, const TriangleMesh& mesh,
+               const WriteOptions& options = {});
 
 /// Writes a cloud in any supported format (a mesh format gets vertices only).
-void WriteCloud(const std::filesystem::path& path, const PointCloud& cloud, const WriteOptions& options = {});
+void WriteCloud(const std::filesystem::path& path, const PointCloud& cloud,
+                const WriteOptions& options = {});
 
 }  // namespace vb::io

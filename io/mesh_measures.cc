@@ -8,7 +8,8 @@ Eigen::Matrix3Xd VertexNormals(const TriangleMesh& mesh) {
   Eigen::Matrix3Xd N = Eigen::Matrix3Xd::Zero(3, mesh.num_vertices());
   for (int f = 0; f < mesh.num_faces(); ++f) {
     const Eigen::Vector3d a = mesh.V.col(mesh.F(0, f));
-    const Eigen::Vector3d area_vector = (mesh.V.col(mesh.F(1, f)) - a).cross(mesh.V.col(mesh.F(2, f)) - a);
+    const Eigen::Vector3d area_vector =
+        (mesh.V.col(mesh.F(1, f)) - a).cross(mesh.V.col(mesh.F(2, f)) - a);
     for (int k = 0; k < 3; ++k) N.col(mesh.F(k, f)) += area_vector;
   }
   for (int i = 0; i < mesh.num_vertices(); ++i) {

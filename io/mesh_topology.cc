@@ -2,11 +2,10 @@
 
 #include <algorithm>
 #include <array>
-#include <numeric>
-#include <vector>
-
 #include <boost/iterator/counting_iterator.hpp>
 #include <boost/pending/disjoint_sets.hpp>
+#include <numeric>
+#include <vector>
 
 #include "io/error.h"
 
@@ -14,16 +13,19 @@ namespace vb::io {
 namespace {
 
 struct HalfEdge {
-  int lo, hi;    // undirected key
+  int lo, hi;  // undirected key
   int face;
   bool forward;  // traversed lo -> hi
-  bool operator<(const HalfEdge& o) const { return std::tie(lo, hi, face) < std::tie(o.lo, o.hi, o.face); }
+  bool operator<(const HalfEdge& o) const {
+    return std::tie(lo, hi, face) < std::tie(o.lo, o.hi, o.face);
+  }
 };
 
 }  // namespace
 
 std::string TopologyReport::Describe() const {
-  std::string s = std::to_string(num_vertices) + " vertices, " + std::to_string(num_faces) + " faces";
+  std::string s =
+      std::to_string(num_vertices) + " vertices, " + std::to_string(num_faces) + " faces";
   auto add = [&s](int count, const char* what) {
     if (count > 0) s += ", " + std::to_string(count) + " " + what;
   };
@@ -33,7 +35,8 @@ std::string TopologyReport::Describe() const {
   add(degenerate_faces, "degenerate faces");
   add(unreferenced_vertices, "unreferenced vertices");
   add(nonmanifold_vertices, "non-manifold vertices");
-  s += ", " + std::to_string(components) + " component(s), Euler characteristic " + std::to_string(euler_characteristic());
+  s += ", " + std::to_string(components) + " component(s), Euler characteristic " +
+       std::to_string(euler_characteristic());
   return s;
 }
 
@@ -68,7 +71,9 @@ TopologyReport AnalyzeTopology(const TriangleMesh& mesh) {
   vertex_links.reserve(half_edges.size() * 2);
   for (std::size_t i = 0; i < half_edges.size();) {
     std::size_t j = i;
-    while (j < half_edges.size() && half_edges[j].lo == half_edges[i].lo && half_edges[j].hi == half_edges[i].hi) ++j;
+    while (j < half_edges.size() && half_edges[j].lo == half_edges[i].lo &&
+           half_edges[j].hi == half_edges[i].hi)
+      ++j;
     ++r.num_edges;
     const std::size_t count = j - i;
     if (count == 1) {
@@ -87,13 +92,15 @@ TopologyReport AnalyzeTopology(const TriangleMesh& mesh) {
     }
     i = j;
   }
-  r.components = static_cast<int>(components.count_sets(boost::counting_iterator<int>(0), boost::counting_iterator<int>(r.num_faces)));
+  r.components = static_cast<int>(components.count_sets(
+      boost::counting_iterator<int>(0), boost::counting_iterator<int>(r.num_faces)));
 
   // A vertex is manifold when its incident faces, linked through shared edges at the vertex,
   // form one group. Count groups per vertex with a union-find over face slots.
   std::vector<std::vector<int>> faces_of_vertex(static_cast<std::size_t>(r.num_vertices));
   for (int f = 0; f < r.num_faces; ++f) {
-    for (int k = 0; k < 3; ++k) faces_of_vertex[static_cast<std::size_t>(mesh.F(k, f))].push_back(f);
+    for (int k = 0; k < 3; ++k)
+      faces_of_vertex[static_cast<std::size_t>(mesh.F(k, f))].push_back(f);
   }
   std::sort(vertex_links.begin(), vertex_links.end());
   std::size_t link = 0;
@@ -107,7 +114,8 @@ TopologyReport AnalyzeTopology(const TriangleMesh& mesh) {
     for (; link < vertex_links.size() && vertex_links[link].first == v; ++link) {
       fan.union_set(slot(vertex_links[link].second[0]), slot(vertex_links[link].second[1]));
     }
-    const auto fans = fan.count_sets(boost::counting_iterator<std::size_t>(0), boost::counting_iterator<std::size_t>(faces.size()));
+    const auto fans = fan.count_sets(boost::counting_iterator<std::size_t>(0),
+                                     boost::counting_iterator<std::size_t>(faces.size()));
     if (fans > 1) ++r.nonmanifold_vertices;
   }
   return r;

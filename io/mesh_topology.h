@@ -26,7 +26,9 @@ struct TopologyReport {
            unreferenced_vertices == 0 && nonmanifold_vertices == 0 && num_faces > 0;
   }
   /// Every interior edge is traversed in opposite directions by its two faces.
-  bool is_consistently_oriented() const { return inconsistent_edges == 0 && nonmanifold_edges == 0; }
+  bool is_consistently_oriented() const {
+    return inconsistent_edges == 0 && nonmanifold_edges == 0;
+  }
   /// One line naming every defect, for error messages.
   std::string Describe() const;
 };

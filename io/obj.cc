@@ -12,7 +12,8 @@ namespace vb::io {
 namespace {
 
 // Resolves a 1-based or negative (relative) OBJ index against the count seen so far.
-int ResolveIndex(const internal::LineScanner& scan, std::int64_t index, std::size_t count, const char* what) {
+int ResolveIndex(const internal::LineScanner& scan, std::int64_t index, std::size_t count,
+                 const char* what) {
   const auto n = static_cast<std::int64_t>(count);
   const std::int64_t resolved = index < 0 ? n + index : index - 1;
   if (index == 0 || resolved < 0 || resolved >= n) {
@@ -83,7 +84,8 @@ TriangleMesh ReadObj(const std::filesystem::path& path, const ReadLimits& limits
     bool consistent = true;
     for (std::size_t c = 0; c < triangles.size() && consistent; ++c) {
       int& assigned = normal_of_vertex[static_cast<std::size_t>(triangles[c])];
-      if (corner_normals[c] < 0 || (assigned >= 0 && assigned != corner_normals[c])) consistent = false;
+      if (corner_normals[c] < 0 || (assigned >= 0 && assigned != corner_normals[c]))
+        consistent = false;
       assigned = corner_normals[c];
     }
     for (int assigned : normal_of_vertex) consistent = consistent && assigned >= 0;
@@ -104,11 +106,13 @@ void WriteObj(const std::filesystem::path& path, const TriangleMesh& mesh) {
   out << "# written by VirtualButcher\n";
   char buffer[128];
   for (int i = 0; i < mesh.num_vertices(); ++i) {
-    std::snprintf(buffer, sizeof(buffer), "v %.17g %.17g %.17g\n", mesh.V(0, i), mesh.V(1, i), mesh.V(2, i));
+    std::snprintf(buffer, sizeof(buffer), "v %.17g %.17g %.17g\n", mesh.V(0, i), mesh.V(1, i),
+                  mesh.V(2, i));
     out << buffer;
   }
   for (int i = 0; i < (mesh.has_normals() ? mesh.num_vertices() : 0); ++i) {
-    std::snprintf(buffer, sizeof(buffer), "vn %.17g %.17g %.17g\n", mesh.N(0, i), mesh.N(1, i), mesh.N(2, i));
+    std::snprintf(buffer, sizeof(buffer), "vn %.17g %.17g %.17g\n", mesh.N(0, i), mesh.N(1, i),
+                  mesh.N(2, i));
     out << buffer;
   }
   for (int f = 0; f < mesh.num_faces(); ++f) {

@@ -1,16 +1,16 @@
 #include "io/pcd.h"
 
+#include <pcl/PCLPointCloud2.h>
+#include <pcl/conversions.h>
+#include <pcl/io/pcd_io.h>
+#include <pcl/point_types.h>
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <sstream>
 #include <string>
 #include <vector>
-
-#include <pcl/PCLPointCloud2.h>
-#include <pcl/conversions.h>
-#include <pcl/io/pcd_io.h>
-#include <pcl/point_types.h>
 
 #include "io/error.h"
 
@@ -42,10 +42,13 @@ void CheckHeaderAgainstFileSize(const std::filesystem::path& path, std::uint64_t
     if (key == "COUNT") numbers(fields, &counts);
     if (key == "DATA") fields >> data;
   }
-  if (data.empty()) throw InputError(source + ": malformed PCD header (no DATA line in the first 64 lines)");
+  if (data.empty())
+    throw InputError(source + ": malformed PCD header (no DATA line in the first 64 lines)");
   for (std::size_t i = 0; i < sizes.size(); ++i) {
     const std::uint64_t count = i < counts.size() ? counts[i] : 1;
-    if (sizes[i] > 8 || count > 1024) throw InputError(source + ": PCD field " + std::to_string(i) + " has an implausible SIZE or COUNT");
+    if (sizes[i] > 8 || count > 1024)
+      throw InputError(source + ": PCD field " + std::to_string(i) +
+                       " has an implausible SIZE or COUNT");
     point_step += sizes[i] * count;
   }
   if (width > (std::uint64_t{1} << 32) || height > (std::uint64_t{1} << 32)) {
@@ -55,12 +58,14 @@ void CheckHeaderAgainstFileSize(const std::filesystem::path& path, std::uint64_t
   const std::uint64_t body = file_bytes - std::min(header_bytes, file_bytes);
   // ascii: at least two characters per value; binary: exact; compressed: LZF expands at most
   // about 100 times, so 256 is a safe ceiling.
-  const std::uint64_t capacity = data == "ascii"    ? body / (2 * std::max<std::size_t>(sizes.size(), 1))
-                                 : data == "binary" ? body / std::max<std::uint64_t>(point_step, 1)
-                                                    : 256 * body / std::max<std::uint64_t>(point_step, 1);
+  const std::uint64_t capacity =
+      data == "ascii"    ? body / (2 * std::max<std::size_t>(sizes.size(), 1))
+      : data == "binary" ? body / std::max<std::uint64_t>(point_step, 1)
+                         : 256 * body / std::max<std::uint64_t>(point_step, 1);
   if (points > capacity) {
-    throw InputError(source + ": header declares " + std::to_string(points) + " points, more than a file of " +
-                     std::to_string(file_bytes) + " bytes can hold");
+    throw InputError(source + ": header declares " + std::to_string(points) +
+                     " points, more than a file of " + std::to_string(file_bytes) +
+                     " bytes can hold");
   }
 }
 
@@ -74,10 +79,12 @@ bool HasField(const pcl::PCLPointCloud2& blob, const char* name) {
 PointCloud ReadPcd(const std::filesystem::path& path, const ReadLimits& limits) {
   const std::string source = path.string();
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) throw InputError(source + ": not a readable regular file");
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw InputError(source + ": not a readable regular file");
   const std::uint64_t file_bytes = std::filesystem::file_size(path, ec);
   if (ec || file_bytes > limits.max_file_bytes) {
-    throw InputError(source + ": file size is unreadable or above the limit of " + std::to_string(limits.max_file_bytes));
+    throw InputError(source + ": file size is unreadable or above the limit of " +
+                     std::to_string(limits.max_file_bytes));
   }
   CheckHeaderAgainstFileSize(path, file_bytes);
   pcl::PCDReader reader;
@@ -96,7 +103,8 @@ PointCloud ReadPcd(const std::filesystem::path& path, const ReadLimits& limits) 
   if (reader.read(source, blob) < 0) throw InputError(source + ": malformed PCD body");
   pcl::PointCloud<pcl::PointXYZ> xyz;
   pcl::fromPCLPointCloud2(blob, xyz);
-  const bool with_normals = HasField(blob, "normal_x") && HasField(blob, "normal_y") && HasField(blob, "normal_z");
+  const bool with_normals =
+      HasField(blob, "normal_x") && HasField(blob, "normal_y") && HasField(blob, "normal_z");
   pcl::PointCloud<pcl::Normal> normals;
   if (with_normals) pcl::fromPCLPointCloud2(blob, normals);
 

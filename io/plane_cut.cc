@@ -1,10 +1,9 @@
 #include "io/plane_cut.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <array>
 #include <tuple>
-
-#include <Eigen/Dense>
 
 #include "io/error.h"
 
@@ -24,7 +23,9 @@ SurfacePoint CrossingOnEdge(int face, int k, double d_from, double d_to) {
 
 struct EdgeKey {
   int lo, hi, face;
-  bool operator<(const EdgeKey& o) const { return std::tie(lo, hi, face) < std::tie(o.lo, o.hi, o.face); }
+  bool operator<(const EdgeKey& o) const {
+    return std::tie(lo, hi, face) < std::tie(o.lo, o.hi, o.face);
+  }
 };
 
 }  // namespace
@@ -32,7 +33,8 @@ struct EdgeKey {
 std::vector<SectionLoop> PlaneSection(const TriangleMesh& mesh, const Plane& plane) {
   const int nf = mesh.num_faces();
   std::vector<double> d(static_cast<std::size_t>(mesh.num_vertices()));
-  for (int i = 0; i < mesh.num_vertices(); ++i) d[static_cast<std::size_t>(i)] = plane.SignedDistance(mesh.V.col(i));
+  for (int i = 0; i < mesh.num_vertices(); ++i)
+    d[static_cast<std::size_t>(i)] = plane.SignedDistance(mesh.V.col(i));
   auto positive = [&d](int v) { return d[static_cast<std::size_t>(v)] >= 0.0; };
 
   // For each crossing face: the local index of its entry edge (negative to positive) and of
@@ -67,7 +69,8 @@ std::vector<SectionLoop> PlaneSection(const TriangleMesh& mesh, const Plane& pla
   for (int f = 0; f < nf; ++f) {
     if (crossing[static_cast<std::size_t>(f)][0] < 0) continue;
     successor[static_cast<std::size_t>(f)] = next_face(f);
-    if (successor[static_cast<std::size_t>(f)] >= 0) has_predecessor[static_cast<std::size_t>(successor[static_cast<std::size_t>(f)])] = true;
+    if (successor[static_cast<std::size_t>(f)] >= 0)
+      has_predecessor[static_cast<std::size_t>(successor[static_cast<std::size_t>(f)])] = true;
   }
 
   std::vector<SectionLoop> loops;
@@ -87,10 +90,13 @@ std::vector<SectionLoop> PlaneSection(const TriangleMesh& mesh, const Plane& pla
   };
   // Open chains first (only on meshes with boundary), from their first face.
   for (int f = 0; f < nf; ++f) {
-    if (crossing[static_cast<std::size_t>(f)][0] >= 0 && !has_predecessor[static_cast<std::size_t>(f)] && !visited[static_cast<std::size_t>(f)]) walk(f);
+    if (crossing[static_cast<std::size_t>(f)][0] >= 0 &&
+        !has_predecessor[static_cast<std::size_t>(f)] && !visited[static_cast<std::size_t>(f)])
+      walk(f);
   }
   for (int f = 0; f < nf; ++f) {
-    if (crossing[static_cast<std::size_t>(f)][0] >= 0 && !visited[static_cast<std::size_t>(f)]) walk(f);
+    if (crossing[static_cast<std::size_t>(f)][0] >= 0 && !visited[static_cast<std::size_t>(f)])
+      walk(f);
   }
   return loops;
 }
@@ -136,15 +142,18 @@ std::vector<PartMeasure> MeasureParts(const TriangleMesh& mesh, std::span<const 
   std::vector<Corner> polygon, scratch;
   for (std::size_t part = 0; part < num_parts; ++part) {
     std::vector<HalfSpace> bounds;
-    if (part > 0) bounds.push_back({-cuts[part - 1].normal, cuts[part - 1].point, cuts[part - 1].point});
-    if (part < cuts.size()) bounds.push_back({cuts[part].normal, cuts[part].point, cuts[part].point});
+    if (part > 0)
+      bounds.push_back({-cuts[part - 1].normal, cuts[part - 1].point, cuts[part - 1].point});
+    if (part < cuts.size())
+      bounds.push_back({cuts[part].normal, cuts[part].point, cuts[part].point});
     if (bounds.size() == 2) {
       // Close both cut faces from one point on both planes, so the stretch of cut-face
       // boundary along the planes' common line (which no triangle produces) adds nothing.
       Eigen::Matrix<double, 2, 3> A;
       A.row(0) = bounds[0].normal.transpose();
       A.row(1) = bounds[1].normal.transpose();
-      const Eigen::Vector2d c(bounds[0].normal.dot(bounds[0].point), bounds[1].normal.dot(bounds[1].point));
+      const Eigen::Vector2d c(bounds[0].normal.dot(bounds[0].point),
+                              bounds[1].normal.dot(bounds[1].point));
       const Eigen::Matrix2d G = A * A.transpose();
       if (std::abs(G.determinant()) > 1e-12) {
         const Eigen::Vector3d x = o + A.transpose() * G.ldlt().solve(c - A * o);
@@ -157,7 +166,8 @@ std::vector<PartMeasure> MeasureParts(const TriangleMesh& mesh, std::span<const 
     for (int f = 0; f < mesh.num_faces(); ++f) {
       polygon.clear();
       for (int k = 0; k < 3; ++k) polygon.push_back({mesh.V.col(mesh.F(k, f)), -1});
-      for (std::size_t b = 0; b < bounds.size() && !polygon.empty(); ++b) Clip(bounds[b], static_cast<int>(b), &polygon, &scratch);
+      for (std::size_t b = 0; b < bounds.size() && !polygon.empty(); ++b)
+        Clip(bounds[b], static_cast<int>(b), &polygon, &scratch);
       if (polygon.size() < 3) continue;
       for (std::size_t i = 1; i + 1 < polygon.size(); ++i) {
         const Eigen::Vector3d a = polygon[0].p - o, b = polygon[i].p - o, c = polygon[i + 1].p - o;

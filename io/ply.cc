@@ -1,5 +1,7 @@
 #include "io/ply.h"
 
+#include <pcl/io/ply/ply_parser.h>
+
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -9,8 +11,6 @@
 #include <string>
 #include <tuple>
 #include <vector>
-
-#include <pcl/io/ply/ply_parser.h>
 
 #include "io/error.h"
 #include "io/polygon_fan.h"
@@ -54,7 +54,9 @@ struct PlyState {
     return format == ply::ascii_format ? 2 : size;
   }
 
-  std::size_t vertex_index() const { return elements[static_cast<std::size_t>(vertex_element)].index; }
+  std::size_t vertex_index() const {
+    return elements[static_cast<std::size_t>(vertex_element)].index;
+  }
 
   [[noreturn]] void Fail(const std::string& message) const {
     std::string where = source;
@@ -108,7 +110,8 @@ struct PlyState {
     std::uint64_t needed = 0;
     for (const Element& e : elements) {
       // Saturating: a count of 10^12 times a few bytes still fits in 64 bits.
-      const std::uint64_t bytes = static_cast<std::uint64_t>(e.count) * std::max<std::uint64_t>(e.min_bytes_each, 1);
+      const std::uint64_t bytes =
+          static_cast<std::uint64_t>(e.count) * std::max<std::uint64_t>(e.min_bytes_each, 1);
       needed += bytes;
       if (bytes > file_bytes || needed > file_bytes) {
         parser_error.emplace(0, "header declares " + std::to_string(e.count) + " " + e.name +
@@ -117,7 +120,8 @@ struct PlyState {
         return false;
       }
     }
-    const auto nv = static_cast<Eigen::Index>(elements[static_cast<std::size_t>(vertex_element)].count);
+    const auto nv =
+        static_cast<Eigen::Index>(elements[static_cast<std::size_t>(vertex_element)].count);
     V.setZero(3, nv);
     const bool any_normal = normal_seen[0] || normal_seen[1] || normal_seen[2];
     N.setZero(3, any_normal ? nv : 0);
@@ -130,8 +134,8 @@ struct PlyState {
 
 template <typename T>
 typename Parser::scalar_property_callback_type<T>::type DefineScalar(PlyState* s,
-                                                                    const std::string& element,
-                                                                    const std::string& property) {
+                                                                     const std::string& element,
+                                                                     const std::string& property) {
   s->elements.back().min_bytes_each += s->ScalarBytes(sizeof(T));
   if (element != "vertex") return {};
   static constexpr const char* kCoordinates[] = {"x", "y", "z"};
@@ -139,11 +143,15 @@ typename Parser::scalar_property_callback_type<T>::type DefineScalar(PlyState* s
   for (int k = 0; k < 3; ++k) {
     if (property == kCoordinates[k]) {
       s->coordinate_seen[k] = true;
-      return [s, k](T value) { s->V(k, static_cast<Eigen::Index>(s->vertex_index())) = static_cast<double>(value); };
+      return [s, k](T value) {
+        s->V(k, static_cast<Eigen::Index>(s->vertex_index())) = static_cast<double>(value);
+      };
     }
     if (property == kNormals[k]) {
       s->normal_seen[k] = true;
-      return [s, k](T value) { s->N(k, static_cast<Eigen::Index>(s->vertex_index())) = static_cast<double>(value); };
+      return [s, k](T value) {
+        s->N(k, static_cast<Eigen::Index>(s->vertex_index())) = static_cast<double>(value);
+      };
     }
   }
   return {};
@@ -184,18 +192,21 @@ void RegisterLists(PlyState* s, Parser::list_property_definition_callbacks_type*
 // entries can be face indices.
 template <typename SizeT>
 void RegisterAllLists(PlyState* s, Parser::list_property_definition_callbacks_type* callbacks) {
-  RegisterLists<SizeT, ply::int8, ply::int16, ply::int32, ply::uint8, ply::uint16, ply::uint32>(s, callbacks);
+  RegisterLists<SizeT, ply::int8, ply::int16, ply::int32, ply::uint8, ply::uint16, ply::uint32>(
+      s, callbacks);
   Parser::at<SizeT, ply::float32>(*callbacks) = [s](const std::string&, const std::string&) {
     s->elements.back().min_bytes_each += s->ScalarBytes(sizeof(SizeT));
-    return std::tuple<typename Parser::list_property_begin_callback_type<SizeT, ply::float32>::type,
-                      typename Parser::list_property_element_callback_type<SizeT, ply::float32>::type,
-                      typename Parser::list_property_end_callback_type<SizeT, ply::float32>::type>{};
+    return std::tuple<
+        typename Parser::list_property_begin_callback_type<SizeT, ply::float32>::type,
+        typename Parser::list_property_element_callback_type<SizeT, ply::float32>::type,
+        typename Parser::list_property_end_callback_type<SizeT, ply::float32>::type>{};
   };
   Parser::at<SizeT, ply::float64>(*callbacks) = [s](const std::string&, const std::string&) {
     s->elements.back().min_bytes_each += s->ScalarBytes(sizeof(SizeT));
-    return std::tuple<typename Parser::list_property_begin_callback_type<SizeT, ply::float64>::type,
-                      typename Parser::list_property_element_callback_type<SizeT, ply::float64>::type,
-                      typename Parser::list_property_end_callback_type<SizeT, ply::float64>::type>{};
+    return std::tuple<
+        typename Parser::list_property_begin_callback_type<SizeT, ply::float64>::type,
+        typename Parser::list_property_element_callback_type<SizeT, ply::float64>::type,
+        typename Parser::list_property_end_callback_type<SizeT, ply::float64>::type>{};
   };
 }
 
@@ -212,7 +223,8 @@ TriangleMesh ReadPly(const std::filesystem::path& path, const ReadLimits& limits
   s.file_bytes = std::filesystem::file_size(path, ec);
   if (ec || s.file_bytes > limits.max_file_bytes) {
     throw InputError(s.source + ": file size " + std::to_string(s.file_bytes) +
-                     " is unreadable or above the limit of " + std::to_string(limits.max_file_bytes));
+                     " is unreadable or above the limit of " +
+                     std::to_string(limits.max_file_bytes));
   }
 
   Parser parser;
@@ -251,7 +263,8 @@ TriangleMesh ReadPly(const std::filesystem::path& path, const ReadLimits& limits
     if (s.current != nullptr) {
       where += ": " + s.current->name + " " + std::to_string(s.current->index);
     }
-    const auto [line, message] = s.parser_error.value_or(std::make_pair(std::size_t{0}, std::string("parse error")));
+    const auto [line, message] =
+        s.parser_error.value_or(std::make_pair(std::size_t{0}, std::string("parse error")));
     if (line > 0 && s.format == ply::ascii_format) where += " (line " + std::to_string(line) + ")";
     throw InputError(where + ": " + message);
   }
@@ -267,7 +280,8 @@ TriangleMesh ReadPly(const std::filesystem::path& path, const ReadLimits& limits
   mesh.F = internal::FacesFromFlat(s.triangles);
   for (Eigen::Index i = 0; i < mesh.V.cols(); ++i) {
     if (!mesh.V.col(i).allFinite() || (mesh.has_normals() && !mesh.N.col(i).allFinite())) {
-      throw InputError(s.source + ": vertex " + std::to_string(i) + ": non-finite coordinate or normal");
+      throw InputError(s.source + ": vertex " + std::to_string(i) +
+                       ": non-finite coordinate or normal");
     }
   }
   return mesh;

@@ -1,9 +1,8 @@
 #pragma once
 
+#include <Eigen/Core>
 #include <span>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace vb::io::internal {
 

@@ -6,7 +6,8 @@ namespace vb::io {
 
 Eigen::Vector3d Evaluate(const TriangleMesh& mesh, const SurfacePoint& p) {
   VB_DEMAND(p.face >= 0 && p.face < mesh.num_faces());
-  return p.barycentric[0] * mesh.V.col(mesh.F(0, p.face)) + p.barycentric[1] * mesh.V.col(mesh.F(1, p.face)) +
+  return p.barycentric[0] * mesh.V.col(mesh.F(0, p.face)) +
+         p.barycentric[1] * mesh.V.col(mesh.F(1, p.face)) +
          p.barycentric[2] * mesh.V.col(mesh.F(2, p.face));
 }
 

@@ -20,14 +20,17 @@ PointCloud ReadXyz(const std::filesystem::path& path, const ReadLimits& limits) 
       if (n != 3 && n != 6) scan.Fail("expected 3 or 6 columns, found " + std::to_string(n));
       columns = n;
     } else if (n != columns) {
-      scan.Fail("expected " + std::to_string(columns) + " columns like the first point, found " + std::to_string(n));
+      scan.Fail("expected " + std::to_string(columns) + " columns like the first point, found " +
+                std::to_string(n));
     }
-    for (std::size_t k = 0; k < n; ++k) values.push_back(scan.Double(k, k < 3 ? "coordinate" : "normal component"));
+    for (std::size_t k = 0; k < n; ++k)
+      values.push_back(scan.Double(k, k < 3 ? "coordinate" : "normal component"));
   }
   PointCloud cloud;
   if (columns == 0) return cloud;
   const auto count = static_cast<Eigen::Index>(values.size() / columns);
-  const Eigen::Map<const Eigen::MatrixXd> table(values.data(), static_cast<Eigen::Index>(columns), count);
+  const Eigen::Map<const Eigen::MatrixXd> table(values.data(), static_cast<Eigen::Index>(columns),
+                                                count);
   cloud.points = table.topRows(3);
   if (columns == 6) cloud.normals = table.bottomRows(3);
   return cloud;
@@ -38,10 +41,12 @@ void WriteXyz(const std::filesystem::path& path, const PointCloud& cloud) {
   if (!out) throw std::runtime_error(path.string() + ": cannot open for writing");
   char buffer[160];
   for (int i = 0; i < cloud.size(); ++i) {
-    std::snprintf(buffer, sizeof(buffer), "%.17g %.17g %.17g", cloud.points(0, i), cloud.points(1, i), cloud.points(2, i));
+    std::snprintf(buffer, sizeof(buffer), "%.17g %.17g %.17g", cloud.points(0, i),
+                  cloud.points(1, i), cloud.points(2, i));
     out << buffer;
     if (cloud.has_normals()) {
-      std::snprintf(buffer, sizeof(buffer), " %.17g %.17g %.17g", cloud.normals(0, i), cloud.normals(1, i), cloud.normals(2, i));
+      std::snprintf(buffer, sizeof(buffer), " %.17g %.17g %.17g", cloud.normals(0, i),
+                    cloud.normals(1, i), cloud.normals(2, i));
       out << buffer;
     }
     out << '\n';

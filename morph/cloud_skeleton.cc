@@ -1,16 +1,15 @@
 #include "morph/cloud_skeleton.h"
 
 #include <algorithm>
-#include <cmath>
-#include <map>
-#include <numeric>
-#include <unordered_map>
-
 #include <boost/graph/adjacency_list.hpp>
 #include <boost/graph/connected_components.hpp>
 #include <boost/graph/dijkstra_shortest_paths.hpp>
 #include <boost/graph/kruskal_min_spanning_tree.hpp>
 #include <boost/pending/disjoint_sets.hpp>
+#include <cmath>
+#include <map>
+#include <numeric>
+#include <unordered_map>
 
 #include "io/error.h"
 #include "io/mesh_measures.h"
@@ -19,18 +18,23 @@
 namespace vb::morph {
 namespace {
 
-using Graph = boost::adjacency_list<boost::vecS, boost::vecS, boost::undirectedS, boost::no_property,
-                                    boost::property<boost::edge_weight_t, double>>;
+using Graph =
+    boost::adjacency_list<boost::vecS, boost::vecS, boost::undirectedS, boost::no_property,
+                          boost::property<boost::edge_weight_t, double>>;
 
 // Voxel-grid downsampling: one centroid per occupied cell; keeps, per output point, the
 // input columns it averages.
-Eigen::Matrix3Xd Downsample(const Eigen::Matrix3Xd& points, double cell, std::vector<std::vector<int>>* members) {
+Eigen::Matrix3Xd Downsample(const Eigen::Matrix3Xd& points, double cell,
+                            std::vector<std::vector<int>>* members) {
   const Eigen::Vector3d lo = points.rowwise().minCoeff();
-  std::vector<std::pair<std::array<std::int64_t, 3>, int>> keyed(static_cast<std::size_t>(points.cols()));
+  std::vector<std::pair<std::array<std::int64_t, 3>, int>> keyed(
+      static_cast<std::size_t>(points.cols()));
   for (Eigen::Index i = 0; i < points.cols(); ++i) {
     const Eigen::Vector3d c = ((points.col(i) - lo) / cell).array().floor();
-    keyed[static_cast<std::size_t>(i)] = {{static_cast<std::int64_t>(c.x()), static_cast<std::int64_t>(c.y()), static_cast<std::int64_t>(c.z())},
-                                          static_cast<int>(i)};
+    keyed[static_cast<std::size_t>(i)] = {
+        {static_cast<std::int64_t>(c.x()), static_cast<std::int64_t>(c.y()),
+         static_cast<std::int64_t>(c.z())},
+        static_cast<int>(i)};
   }
   std::sort(keyed.begin(), keyed.end());
   std::vector<Eigen::Vector3d> centres;
@@ -48,14 +52,16 @@ Eigen::Matrix3Xd Downsample(const Eigen::Matrix3Xd& points, double cell, std::ve
     i = j;
   }
   Eigen::Matrix3Xd out(3, static_cast<Eigen::Index>(centres.size()));
-  for (std::size_t i = 0; i < centres.size(); ++i) out.col(static_cast<Eigen::Index>(i)) = centres[i];
+  for (std::size_t i = 0; i < centres.size(); ++i)
+    out.col(static_cast<Eigen::Index>(i)) = centres[i];
   return out;
 }
 
 }  // namespace
 
 SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOptions& options) {
-  if (input.cols() < 50) throw InputError("skeleton: " + std::to_string(input.cols()) + " points, fewer than 50");
+  if (input.cols() < 50)
+    throw InputError("skeleton: " + std::to_string(input.cols()) + " points, fewer than 50");
   const double size = io::BoundingBoxDiagonal(input);
   if (!(size > 0.0)) throw InputError("skeleton: the points have no extent");
 
@@ -94,11 +100,14 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
     }
   }
   std::vector<double> sorted = lengths;
-  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2), sorted.end());
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
+                   sorted.end());
   const double max_edge = 3.0 * sorted[sorted.size() / 2];
   Graph graph(static_cast<std::size_t>(n));
   for (std::size_t e = 0; e < edges.size(); ++e) {
-    if (lengths[e] <= max_edge) boost::add_edge(static_cast<std::size_t>(edges[e][0]), static_cast<std::size_t>(edges[e][1]), lengths[e], graph);
+    if (lengths[e] <= max_edge)
+      boost::add_edge(static_cast<std::size_t>(edges[e][0]), static_cast<std::size_t>(edges[e][1]),
+                      lengths[e], graph);
   }
 
   // Bridge pieces separated by missing regions; drop tiny pieces (outliers).
@@ -108,9 +117,13 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
   for (int p : piece) ++piece_size[static_cast<std::size_t>(p)];
   std::vector<bool> keep(static_cast<std::size_t>(n));
   const int min_piece = std::max(5, static_cast<int>(options.min_piece * n));
-  for (int i = 0; i < n; ++i) keep[static_cast<std::size_t>(i)] = piece_size[static_cast<std::size_t>(piece[static_cast<std::size_t>(i)])] >= min_piece;
+  for (int i = 0; i < n; ++i)
+    keep[static_cast<std::size_t>(i)] =
+        piece_size[static_cast<std::size_t>(piece[static_cast<std::size_t>(i)])] >= min_piece;
   boost::disjoint_sets_with_storage<> joined(static_cast<std::size_t>(num_pieces));
-  auto group_of = [&](int i) { return static_cast<int>(joined.find_set(piece[static_cast<std::size_t>(i)])); };
+  auto group_of = [&](int i) {
+    return static_cast<int>(joined.find_set(piece[static_cast<std::size_t>(i)]));
+  };
   for (bool merged = true; merged;) {
     merged = false;
     // Closest pair between the group of the first kept point and everything else kept.
@@ -146,7 +159,8 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
       }
     }
     if (pair[0] >= 0) {
-      boost::add_edge(static_cast<std::size_t>(pair[0]), static_cast<std::size_t>(pair[1]), std::sqrt(best), graph);
+      boost::add_edge(static_cast<std::size_t>(pair[0]), static_cast<std::size_t>(pair[1]),
+                      std::sqrt(best), graph);
       joined.union_set(piece[static_cast<std::size_t>(pair[0])], group);
       merged = true;
     }
@@ -155,7 +169,8 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
   // Geodesic distance from an extremity.
   std::vector<double> distance(static_cast<std::size_t>(n));
   auto geodesic_from = [&](int source) {
-    boost::dijkstra_shortest_paths(graph, static_cast<std::size_t>(source), boost::distance_map(distance.data()));
+    boost::dijkstra_shortest_paths(graph, static_cast<std::size_t>(source),
+                                   boost::distance_map(distance.data()));
   };
   int start = 0;
   while (!keep[static_cast<std::size_t>(start)]) ++start;
@@ -174,14 +189,17 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
   std::vector<int> band_of(static_cast<std::size_t>(n), -1);
   for (int i = 0; i < n; ++i) {
     if (keep[static_cast<std::size_t>(i)] && std::isfinite(distance[static_cast<std::size_t>(i)])) {
-      band_of[static_cast<std::size_t>(i)] = static_cast<int>(distance[static_cast<std::size_t>(i)] / band);
+      band_of[static_cast<std::size_t>(i)] =
+          static_cast<int>(distance[static_cast<std::size_t>(i)] / band);
     }
   }
   boost::disjoint_sets_with_storage<> pieces(static_cast<std::size_t>(n));
   auto piece_of = [&](int i) { return static_cast<int>(pieces.find_set(i)); };
   for (const auto e : boost::make_iterator_range(boost::edges(graph))) {
-    const int a = static_cast<int>(boost::source(e, graph)), b = static_cast<int>(boost::target(e, graph));
-    if (band_of[static_cast<std::size_t>(a)] >= 0 && band_of[static_cast<std::size_t>(a)] == band_of[static_cast<std::size_t>(b)]) {
+    const int a = static_cast<int>(boost::source(e, graph)),
+              b = static_cast<int>(boost::target(e, graph));
+    if (band_of[static_cast<std::size_t>(a)] >= 0 &&
+        band_of[static_cast<std::size_t>(a)] == band_of[static_cast<std::size_t>(b)]) {
       pieces.union_set(a, b);
     }
   }
@@ -192,7 +210,8 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
     if (band_of[static_cast<std::size_t>(i)] < 0) continue;
     index.Nearest(points.col(i), 2 * options.neighbours, &found, &d2);
     for (std::size_t k = 1; k < found.size(); ++k) {
-      if (band_of[static_cast<std::size_t>(found[k])] == band_of[static_cast<std::size_t>(i)] && d2[k] < 0.25 * band * band) {
+      if (band_of[static_cast<std::size_t>(found[k])] == band_of[static_cast<std::size_t>(i)] &&
+          d2[k] < 0.25 * band * band) {
         pieces.union_set(i, found[k]);
       }
     }
@@ -207,16 +226,21 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
     std::vector<int> sizes;
     for (const auto& [root, count] : piece_points) sizes.push_back(count);
     if (!sizes.empty()) {
-      std::nth_element(sizes.begin(), sizes.begin() + static_cast<std::ptrdiff_t>(sizes.size() / 2), sizes.end());
+      std::nth_element(sizes.begin(), sizes.begin() + static_cast<std::ptrdiff_t>(sizes.size() / 2),
+                       sizes.end());
       const double small = options.min_band_piece * sizes[sizes.size() / 2];
       std::unordered_map<int, std::unordered_map<int, int>> touching;
       for (const auto e : boost::make_iterator_range(boost::edges(graph))) {
-        const int a = static_cast<int>(boost::source(e, graph)), b = static_cast<int>(boost::target(e, graph));
-        if (band_of[static_cast<std::size_t>(a)] < 0 || band_of[static_cast<std::size_t>(b)] < 0) continue;
+        const int a = static_cast<int>(boost::source(e, graph)),
+                  b = static_cast<int>(boost::target(e, graph));
+        if (band_of[static_cast<std::size_t>(a)] < 0 || band_of[static_cast<std::size_t>(b)] < 0)
+          continue;
         const int ra = piece_of(a), rb = piece_of(b);
         // Only pieces side by side in one band: a limb's last, small band piece continues a
         // chain from the band before and must stay a tip.
-        if (ra == rb || band_of[static_cast<std::size_t>(a)] != band_of[static_cast<std::size_t>(b)]) continue;
+        if (ra == rb ||
+            band_of[static_cast<std::size_t>(a)] != band_of[static_cast<std::size_t>(b)])
+          continue;
         ++touching[ra][rb];
         ++touching[rb][ra];
       }
@@ -239,25 +263,30 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
   std::vector<int> node_of(static_cast<std::size_t>(n), -1);
   for (int i = 0; i < n; ++i) {
     if (band_of[static_cast<std::size_t>(i)] < 0) continue;
-    const auto [it, inserted] = node_of_root.try_emplace(piece_of(i), static_cast<int>(sums.size()));
+    const auto [it, inserted] =
+        node_of_root.try_emplace(piece_of(i), static_cast<int>(sums.size()));
     if (inserted) {
       sums.emplace_back(Eigen::Vector3d::Zero());
       skeleton.support.emplace_back();
     }
     node_of[static_cast<std::size_t>(i)] = it->second;
-    sums[static_cast<std::size_t>(it->second)] += points.col(i) * static_cast<double>(members[static_cast<std::size_t>(i)].size());
+    sums[static_cast<std::size_t>(it->second)] +=
+        points.col(i) * static_cast<double>(members[static_cast<std::size_t>(i)].size());
     auto& support = skeleton.support[static_cast<std::size_t>(it->second)];
-    support.insert(support.end(), members[static_cast<std::size_t>(i)].begin(), members[static_cast<std::size_t>(i)].end());
+    support.insert(support.end(), members[static_cast<std::size_t>(i)].begin(),
+                   members[static_cast<std::size_t>(i)].end());
   }
   skeleton.nodes.resize(3, static_cast<Eigen::Index>(sums.size()));
   for (std::size_t v = 0; v < sums.size(); ++v) {
-    skeleton.nodes.col(static_cast<Eigen::Index>(v)) = sums[v] / static_cast<double>(skeleton.support[v].size());
+    skeleton.nodes.col(static_cast<Eigen::Index>(v)) =
+        sums[v] / static_cast<double>(skeleton.support[v].size());
   }
 
   // Join pieces that touch across neighbouring bands, then keep a minimum spanning tree.
   std::map<std::pair<int, int>, bool> links;
   for (const auto e : boost::make_iterator_range(boost::edges(graph))) {
-    const int a = static_cast<int>(boost::source(e, graph)), b = static_cast<int>(boost::target(e, graph));
+    const int a = static_cast<int>(boost::source(e, graph)),
+              b = static_cast<int>(boost::target(e, graph));
     const int na = node_of[static_cast<std::size_t>(a)], nb = node_of[static_cast<std::size_t>(b)];
     if (na < 0 || nb < 0 || na == nb) continue;
     links[{std::min(na, nb), std::max(na, nb)}] = true;
@@ -265,12 +294,14 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
   Graph nodes_graph(sums.size());
   for (const auto& [link, unused] : links) {
     boost::add_edge(static_cast<std::size_t>(link.first), static_cast<std::size_t>(link.second),
-                    (skeleton.nodes.col(link.first) - skeleton.nodes.col(link.second)).norm(), nodes_graph);
+                    (skeleton.nodes.col(link.first) - skeleton.nodes.col(link.second)).norm(),
+                    nodes_graph);
   }
   std::vector<Graph::edge_descriptor> tree;
   boost::kruskal_minimum_spanning_tree(nodes_graph, std::back_inserter(tree));
   for (const auto& e : tree) {
-    skeleton.edges.push_back({static_cast<int>(boost::source(e, nodes_graph)), static_cast<int>(boost::target(e, nodes_graph))});
+    skeleton.edges.push_back({static_cast<int>(boost::source(e, nodes_graph)),
+                              static_cast<int>(boost::target(e, nodes_graph))});
   }
   return skeleton;
 }

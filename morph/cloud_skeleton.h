@@ -9,11 +9,11 @@ namespace vb::morph {
 /// Lengths are fractions of the cloud's bounding-box diagonal, so one set of defaults fits
 /// any size and unit.
 struct CloudSkeletonOptions {
-  double voxel = 0.012;       ///< downsampling cell
-  int neighbours = 8;         ///< k of the k-nearest-neighbour graph
-  double band = 0.025;        ///< width of one geodesic level set
-  double min_piece = 0.02;    ///< graph pieces smaller than this fraction of points are outliers
-  int smoothing = 1;          ///< rounds of neighbour averaging against normal noise
+  double voxel = 0.012;     ///< downsampling cell
+  int neighbours = 8;       ///< k of the k-nearest-neighbour graph
+  double band = 0.025;      ///< width of one geodesic level set
+  double min_piece = 0.02;  ///< graph pieces smaller than this fraction of points are outliers
+  int smoothing = 1;        ///< rounds of neighbour averaging against normal noise
   /// Level-set pieces with fewer points than this fraction of the median piece are noise
   /// and join the piece of the same band they touch most.
   double min_band_piece = 0.25;
@@ -28,6 +28,7 @@ struct CloudSkeletonOptions {
 /// (from bridging or noise) are cut by a minimum spanning tree: a carcass skeleton is a tree.
 /// Node support indexes the input cloud's columns.
 /// @throws InputError when the cloud has fewer than 50 points or no extent.
-SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& points, const CloudSkeletonOptions& options = {});
+SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& points,
+                            const CloudSkeletonOptions& options = {});
 
 }  // namespace vb::morph

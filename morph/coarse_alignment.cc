@@ -15,7 +15,8 @@ double Since(std::chrono::steady_clock::time_point start) {
 }
 
 // The data term of one template feature node, in the template's normalised frame.
-PointConstraint FeatureConstraint(const Eigen::Vector3d& rest, const Eigen::Vector3d& target, const NodeWeights& w, int column) {
+PointConstraint FeatureConstraint(const Eigen::Vector3d& rest, const Eigen::Vector3d& target,
+                                  const NodeWeights& w, int column) {
   PointConstraint c;
   c.rest = rest;
   c.target = target;
@@ -29,12 +30,14 @@ PointConstraint FeatureConstraint(const Eigen::Vector3d& rest, const Eigen::Vect
 
 // How badly the template, placed by `fit`, and the target disagree as surfaces: the mean of
 // closest-point distances both ways between a few hundred samples of each.
-double SurfaceDisagreement(const Eigen::Matrix3Xd& template_samples, const Eigen::Matrix3Xd& target_samples,
-                           const PointIndex& target_index, const Eigen::Matrix3Xd& target, const Similarity& fit) {
+double SurfaceDisagreement(const Eigen::Matrix3Xd& template_samples,
+                           const Eigen::Matrix3Xd& target_samples, const PointIndex& target_index,
+                           const Eigen::Matrix3Xd& target, const Similarity& fit) {
   Eigen::Matrix3Xd placed(3, template_samples.cols());
   for (Eigen::Index i = 0; i < placed.cols(); ++i) placed.col(i) = fit(template_samples.col(i));
   double sum = 0.0;
-  for (Eigen::Index i = 0; i < placed.cols(); ++i) sum += (target.col(target_index.Nearest(placed.col(i))) - placed.col(i)).norm();
+  for (Eigen::Index i = 0; i < placed.cols(); ++i)
+    sum += (target.col(target_index.Nearest(placed.col(i))) - placed.col(i)).norm();
   const PointIndex placed_index(placed);
   for (Eigen::Index i = 0; i < target_samples.cols(); ++i) {
     sum += (placed.col(placed_index.Nearest(target_samples.col(i))) - target_samples.col(i)).norm();
@@ -51,7 +54,8 @@ Eigen::Matrix3Xd EveryNth(const Eigen::Matrix3Xd& points, int wanted) {
 
 }  // namespace
 
-CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target, const CoarseOptions& options) {
+CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target,
+                         const CoarseOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   CoarseResult result;
   if (target.cols() < 50) {
@@ -83,14 +87,16 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   phase = std::chrono::steady_clock::now();
   // Eq. (3) ranks skeleton pairings; the best few are then checked against the surfaces, as
   // pairings with similar skeleton residuals can place the carcass upside down.
-  const std::vector<Association> candidates = AssociateFeatureNodes(model.features, result.target_features, options.association);
+  const std::vector<Association> candidates =
+      AssociateFeatureNodes(model.features, result.target_features, options.association);
   if (!candidates.empty()) {
     const Eigen::Matrix3Xd template_samples = EveryNth(model.V, options.verification_samples);
     const Eigen::Matrix3Xd target_samples = EveryNth(target, options.verification_samples);
     const PointIndex target_index(target);
     double best = std::numeric_limits<double>::infinity();
     for (const Association& candidate : candidates) {
-      const double disagreement = SurfaceDisagreement(template_samples, target_samples, target_index, target, candidate.from_to);
+      const double disagreement = SurfaceDisagreement(template_samples, target_samples,
+                                                      target_index, target, candidate.from_to);
       if (disagreement < best) {
         best = disagreement;
         result.association = candidate;
@@ -99,8 +105,9 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   }
   result.association_seconds = Since(phase);
   if (!result.association.ok) {
-    result.error = "feature association failed: template has " + std::to_string(model.features.num_terminals()) +
-                   " terminals and " + std::to_string(model.features.num_junctions()) + " junctions, target " +
+    result.error = "feature association failed: template has " +
+                   std::to_string(model.features.num_terminals()) + " terminals and " +
+                   std::to_string(model.features.num_junctions()) + " junctions, target " +
                    std::to_string(result.target_features.num_terminals()) + " and " +
                    std::to_string(result.target_features.num_junctions());
     return result;
@@ -116,11 +123,13 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   phase = std::chrono::steady_clock::now();
   std::vector<PointConstraint> constraints;
   for (const auto& [i, j] : result.association.terminals) {
-    constraints.push_back(FeatureConstraint(model.features.terminals.col(i), to_template(result.target_features.terminals.col(j)),
+    constraints.push_back(FeatureConstraint(model.features.terminals.col(i),
+                                            to_template(result.target_features.terminals.col(j)),
                                             model.terminal_weights, i));
   }
   DeformationState state = DeformationState::Identity(model.graph.num_nodes());
-  result.deformation = SolveEmbeddedDeformation(model.graph, constraints, options.deformation, &state);
+  result.deformation =
+      SolveEmbeddedDeformation(model.graph, constraints, options.deformation, &state);
   result.deformation_seconds = Since(phase);
   if (!result.deformation.usable) {
     result.error = "embedded deformation failed: " + result.deformation.message;

@@ -1,8 +1,7 @@
 #pragma once
 
-#include <string>
-
 #include <Eigen/Core>
+#include <string>
 
 #include "io/triangle_mesh.h"
 #include "morph/cloud_skeleton.h"
@@ -30,10 +29,10 @@ struct CoarseOptions {
 struct CoarseResult {
   bool ok = false;
   std::string error;
-  io::TriangleMesh mesh;             ///< posed template in the target's frame (template faces)
-  Similarity template_to_target;     ///< from the feature association
+  io::TriangleMesh mesh;          ///< posed template in the target's frame (template faces)
+  Similarity template_to_target;  ///< from the feature association
   Association association;
-  FeatureNodes target_features;      ///< in the target's frame
+  FeatureNodes target_features;  ///< in the target's frame
   SolveSummary deformation;
   double skeleton_seconds = 0.0;
   double association_seconds = 0.0;
@@ -44,6 +43,7 @@ struct CoarseResult {
 /// Section II-A: skeleton of the target cloud, feature association (eq. 3) and embedded
 /// deformation of the template (eqs. 4-10) so its posture matches the target's.
 /// @param[in] target 3 by N points (a cloud, or a mesh's vertices).
-CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target, const CoarseOptions& options = {});
+CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target,
+                         const CoarseOptions& options = {});
 
 }  // namespace vb::morph

@@ -1,15 +1,14 @@
 #include "morph/deformation_graph.h"
 
 #include <algorithm>
+#include <boost/graph/adjacency_list.hpp>
+#include <boost/graph/biconnected_components.hpp>
 #include <cmath>
 #include <limits>
 #include <queue>
 #include <set>
 #include <unordered_map>
 #include <unordered_set>
-
-#include <boost/graph/adjacency_list.hpp>
-#include <boost/graph/biconnected_components.hpp>
 
 #include "io/error.h"
 #include "io/mesh_measures.h"
@@ -37,7 +36,8 @@ MeshGraph::MeshGraph(const io::TriangleMesh& mesh) {
   }
 }
 
-std::vector<int> MeshGraph::NearestTargets(int source, int count, const std::vector<int>& target_id) const {
+std::vector<int> MeshGraph::NearestTargets(int source, int count,
+                                           const std::vector<int>& target_id) const {
   // Dijkstra with early exit and a sparse distance map: it touches only the few hundred
   // vertices around the source (Boost's Dijkstra can stop early only by throwing).
   std::vector<int> found;
@@ -52,7 +52,8 @@ std::vector<int> MeshGraph::NearestTargets(int source, int count, const std::vec
     queue.pop();
     if (!done.insert(v).second) continue;
     if (target_id[static_cast<std::size_t>(v)] >= 0) found.push_back(v);
-    for (int e = offsets_[static_cast<std::size_t>(v)]; e < offsets_[static_cast<std::size_t>(v) + 1]; ++e) {
+    for (int e = offsets_[static_cast<std::size_t>(v)];
+         e < offsets_[static_cast<std::size_t>(v) + 1]; ++e) {
       const int u = adjacent_[static_cast<std::size_t>(e)];
       const double du = d + length_[static_cast<std::size_t>(e)];
       auto it = best.find(u);
@@ -65,7 +66,8 @@ std::vector<int> MeshGraph::NearestTargets(int source, int count, const std::vec
   return found;
 }
 
-DeformationGraph BuildDeformationGraph(const io::TriangleMesh& mesh, const DeformationGraphOptions& options) {
+DeformationGraph BuildDeformationGraph(const io::TriangleMesh& mesh,
+                                       const DeformationGraphOptions& options) {
   const double size = io::BoundingBoxDiagonal(mesh.V);
   const double spacing = options.node_spacing * size;
   DeformationGraph g;
@@ -77,7 +79,8 @@ DeformationGraph BuildDeformationGraph(const io::TriangleMesh& mesh, const Defor
     return c;
   };
   auto key = [](const Eigen::Vector3i& c) {
-    return (static_cast<std::int64_t>(c.x()) * 73856093) ^ (static_cast<std::int64_t>(c.y()) * 19349663) ^
+    return (static_cast<std::int64_t>(c.x()) * 73856093) ^
+           (static_cast<std::int64_t>(c.y()) * 19349663) ^
            (static_cast<std::int64_t>(c.z()) * 83492791);
   };
   for (int v = 0; v < mesh.num_vertices(); ++v) {
@@ -89,7 +92,8 @@ DeformationGraph BuildDeformationGraph(const io::TriangleMesh& mesh, const Defor
           auto it = grid.find(key(c + Eigen::Vector3i(dx, dy, dz)));
           if (it == grid.end()) continue;
           for (int node : it->second) {
-            if ((mesh.V.col(g.node_vertex[static_cast<std::size_t>(node)]) - mesh.V.col(v)).norm() < spacing) {
+            if ((mesh.V.col(g.node_vertex[static_cast<std::size_t>(node)]) - mesh.V.col(v)).norm() <
+                spacing) {
               free = false;
               break;
             }
@@ -103,16 +107,19 @@ DeformationGraph BuildDeformationGraph(const io::TriangleMesh& mesh, const Defor
     }
   }
   g.nodes.resize(3, static_cast<Eigen::Index>(g.node_vertex.size()));
-  for (std::size_t j = 0; j < g.node_vertex.size(); ++j) g.nodes.col(static_cast<Eigen::Index>(j)) = mesh.V.col(g.node_vertex[j]);
+  for (std::size_t j = 0; j < g.node_vertex.size(); ++j)
+    g.nodes.col(static_cast<Eigen::Index>(j)) = mesh.V.col(g.node_vertex[j]);
 
   // Edges: each node to its mu nearest nodes along the mesh (Algorithm 1).
   std::vector<int> node_of_vertex(static_cast<std::size_t>(mesh.num_vertices()), -1);
-  for (std::size_t j = 0; j < g.node_vertex.size(); ++j) node_of_vertex[static_cast<std::size_t>(g.node_vertex[j])] = static_cast<int>(j);
+  for (std::size_t j = 0; j < g.node_vertex.size(); ++j)
+    node_of_vertex[static_cast<std::size_t>(g.node_vertex[j])] = static_cast<int>(j);
   const MeshGraph mesh_graph(mesh);
   std::set<std::array<int, 2>> edge_set;
   g.neighbours.resize(g.node_vertex.size());
   for (int j = 0; j < g.num_nodes(); ++j) {
-    const std::vector<int> found = mesh_graph.NearestTargets(g.node_vertex[static_cast<std::size_t>(j)], options.graph_neighbours + 1, node_of_vertex);
+    const std::vector<int> found = mesh_graph.NearestTargets(
+        g.node_vertex[static_cast<std::size_t>(j)], options.graph_neighbours + 1, node_of_vertex);
     for (int v : found) {
       const int k = node_of_vertex[static_cast<std::size_t>(v)];
       if (k == j) continue;
@@ -123,16 +130,18 @@ DeformationGraph BuildDeformationGraph(const io::TriangleMesh& mesh, const Defor
   g.edges.assign(edge_set.begin(), edge_set.end());
 
   // Bridges: biconnected components holding a single edge (found by DFS).
-  using Graph = boost::adjacency_list<boost::vecS, boost::vecS, boost::undirectedS, boost::no_property,
-                                      boost::property<boost::edge_index_t, std::size_t>>;
+  using Graph =
+      boost::adjacency_list<boost::vecS, boost::vecS, boost::undirectedS, boost::no_property,
+                            boost::property<boost::edge_index_t, std::size_t>>;
   Graph bg(static_cast<std::size_t>(g.num_nodes()));
   for (std::size_t e = 0; e < g.edges.size(); ++e) {
-    boost::add_edge(static_cast<std::size_t>(g.edges[e][0]), static_cast<std::size_t>(g.edges[e][1]), e, bg);
+    boost::add_edge(static_cast<std::size_t>(g.edges[e][0]),
+                    static_cast<std::size_t>(g.edges[e][1]), e, bg);
   }
   std::vector<std::size_t> component(g.edges.size());
   const auto edge_index = boost::get(boost::edge_index, bg);
-  const std::size_t num_components =
-      boost::biconnected_components(bg, boost::make_iterator_property_map(component.begin(), edge_index));
+  const std::size_t num_components = boost::biconnected_components(
+      bg, boost::make_iterator_property_map(component.begin(), edge_index));
   std::vector<int> edges_in(num_components, 0);
   for (std::size_t c : component) ++edges_in[c];
   for (std::size_t e = 0; e < g.edges.size(); ++e) {
@@ -144,8 +153,8 @@ DeformationGraph BuildDeformationGraph(const io::TriangleMesh& mesh, const Defor
 namespace {
 
 // Eq. (10) from candidate nodes sorted nearest first: the first `count` get weights.
-void FillWeights(const Eigen::Vector3d& p, std::vector<int> candidates, const DeformationGraph& graph, int count,
-                 Eigen::Index column, NodeWeights* out) {
+void FillWeights(const Eigen::Vector3d& p, std::vector<int> candidates,
+                 const DeformationGraph& graph, int count, Eigen::Index column, NodeWeights* out) {
   std::sort(candidates.begin(), candidates.end());
   candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
   std::sort(candidates.begin(), candidates.end(), [&](int a, int b) {
@@ -154,12 +163,15 @@ void FillWeights(const Eigen::Vector3d& p, std::vector<int> candidates, const De
   const int used = std::min<int>(count, static_cast<int>(candidates.size()));
   VB_DEMAND(used > 0);
   // d_max: distance to the next node after the used ones (or a little past the last).
-  const double d_max = static_cast<int>(candidates.size()) > used
-                           ? (graph.nodes.col(candidates[static_cast<std::size_t>(used)]) - p).norm()
-                           : 1.05 * (graph.nodes.col(candidates[static_cast<std::size_t>(used - 1)]) - p).norm() + 1e-12;
+  const double d_max =
+      static_cast<int>(candidates.size()) > used
+          ? (graph.nodes.col(candidates[static_cast<std::size_t>(used)]) - p).norm()
+          : 1.05 * (graph.nodes.col(candidates[static_cast<std::size_t>(used - 1)]) - p).norm() +
+                1e-12;
   double total = 0.0;
   for (int k = 0; k < used; ++k) {
-    const double w = std::max(0.0, 1.0 - (graph.nodes.col(candidates[static_cast<std::size_t>(k)]) - p).norm() / d_max);
+    const double w = std::max(
+        0.0, 1.0 - (graph.nodes.col(candidates[static_cast<std::size_t>(k)]) - p).norm() / d_max);
     out->nodes(k, column) = candidates[static_cast<std::size_t>(k)];
     out->weights(k, column) = w;
     total += w;
@@ -173,9 +185,11 @@ void FillWeights(const Eigen::Vector3d& p, std::vector<int> candidates, const De
 
 }  // namespace
 
-NodeWeights VertexWeights(const io::TriangleMesh& mesh, const DeformationGraph& graph, const DeformationGraphOptions& options) {
+NodeWeights VertexWeights(const io::TriangleMesh& mesh, const DeformationGraph& graph,
+                          const DeformationGraphOptions& options) {
   std::vector<int> node_of_vertex(static_cast<std::size_t>(mesh.num_vertices()), -1);
-  for (std::size_t j = 0; j < graph.node_vertex.size(); ++j) node_of_vertex[static_cast<std::size_t>(graph.node_vertex[j])] = static_cast<int>(j);
+  for (std::size_t j = 0; j < graph.node_vertex.size(); ++j)
+    node_of_vertex[static_cast<std::size_t>(graph.node_vertex[j])] = static_cast<int>(j);
   const MeshGraph mesh_graph(mesh);
   const int k = options.vertex_neighbours;
   NodeWeights w;
@@ -183,14 +197,17 @@ NodeWeights VertexWeights(const io::TriangleMesh& mesh, const DeformationGraph& 
   w.weights = Eigen::MatrixXd::Zero(k, mesh.num_vertices());
   for (int v = 0; v < mesh.num_vertices(); ++v) {
     std::vector<int> nodes;
-    for (int u : mesh_graph.NearestTargets(v, k + 1, node_of_vertex)) nodes.push_back(node_of_vertex[static_cast<std::size_t>(u)]);
+    for (int u : mesh_graph.NearestTargets(v, k + 1, node_of_vertex))
+      nodes.push_back(node_of_vertex[static_cast<std::size_t>(u)]);
     FillWeights(mesh.V.col(v), nodes, graph, k, v, &w);
   }
   return w;
 }
 
-NodeWeights PointWeights(const Eigen::Matrix3Xd& points, const std::vector<std::vector<int>>& support,
-                         const DeformationGraph& graph, const NodeWeights& vertex_weights, int count) {
+NodeWeights PointWeights(const Eigen::Matrix3Xd& points,
+                         const std::vector<std::vector<int>>& support,
+                         const DeformationGraph& graph, const NodeWeights& vertex_weights,
+                         int count) {
   NodeWeights w;
   w.nodes = Eigen::MatrixXi::Constant(count, points.cols(), -1);
   w.weights = Eigen::MatrixXd::Zero(count, points.cols());

@@ -1,9 +1,8 @@
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "io/triangle_mesh.h"
 
@@ -20,11 +19,11 @@ struct DeformationGraphOptions {
 /// edges join each node to its mu nearest nodes along the mesh (not through the air, so
 /// nearby legs stay independent).
 struct DeformationGraph {
-  std::vector<int> node_vertex;            ///< template vertex of each node
-  Eigen::Matrix3Xd nodes;                  ///< 3 by #nodes positions g_j
+  std::vector<int> node_vertex;              ///< template vertex of each node
+  Eigen::Matrix3Xd nodes;                    ///< 3 by #nodes positions g_j
   std::vector<std::vector<int>> neighbours;  ///< per node, its mu geodesic nearest nodes
-  std::vector<std::array<int, 2>> edges;   ///< undirected, each once
-  std::vector<std::array<int, 2>> bridges; ///< edges whose removal splits the graph (DFS)
+  std::vector<std::array<int, 2>> edges;     ///< undirected, each once
+  std::vector<std::array<int, 2>> bridges;   ///< edges whose removal splits the graph (DFS)
 
   int num_nodes() const { return static_cast<int>(nodes.cols()); }
 };
@@ -53,7 +52,8 @@ class MeshGraph {
 
 /// Samples nodes (greedy Poisson-disk over vertices in index order) and links them.
 /// @pre mesh is closed and connected.
-DeformationGraph BuildDeformationGraph(const io::TriangleMesh& mesh, const DeformationGraphOptions& options);
+DeformationGraph BuildDeformationGraph(const io::TriangleMesh& mesh,
+                                       const DeformationGraphOptions& options);
 
 /// Eq. (10) weights of every mesh vertex: its vertex_neighbours nearest nodes along the
 /// mesh, w_j = 1 - |v - g_j| / d_max with d_max the distance to the next node, normalised.
@@ -62,7 +62,9 @@ NodeWeights VertexWeights(const io::TriangleMesh& mesh, const DeformationGraph& 
 
 /// Eq. (10) weights of points that are not vertices (skeleton feature nodes): candidate
 /// nodes are those acting on the points' @p support vertices; the nearest are kept.
-NodeWeights PointWeights(const Eigen::Matrix3Xd& points, const std::vector<std::vector<int>>& support,
-                         const DeformationGraph& graph, const NodeWeights& vertex_weights, int count);
+NodeWeights PointWeights(const Eigen::Matrix3Xd& points,
+                         const std::vector<std::vector<int>>& support,
+                         const DeformationGraph& graph, const NodeWeights& vertex_weights,
+                         int count);
 
 }  // namespace vb::morph

@@ -1,9 +1,9 @@
 #include "morph/embedded_deformation.h"
 
+#include <ceres/ceres.h>
+
 #include <chrono>
 #include <cmath>
-
-#include <ceres/ceres.h>
 
 #include "io/error.h"
 
@@ -16,7 +16,9 @@ struct RotationCost {
   explicit RotationCost(double weight) : w(std::sqrt(weight)) {}
   template <typename T>
   bool operator()(const T* R, T* r) const {
-    auto column_dot = [R](int a, int b) { return R[a] * R[b] + R[3 + a] * R[3 + b] + R[6 + a] * R[6 + b]; };
+    auto column_dot = [R](int a, int b) {
+      return R[a] * R[b] + R[3 + a] * R[3 + b] + R[6 + a] * R[6 + b];
+    };
     const T root2(std::sqrt(2.0));
     r[0] = w * (column_dot(0, 0) - T(1));
     r[1] = w * (column_dot(1, 1) - T(1));
@@ -63,7 +65,8 @@ struct RigidityCost {
 
 // Eqs. (5) and (14): the deformed point (eq. 9) against its target, or its target's plane.
 struct DataCost {
-  DataCost(const PointConstraint& c, const DeformationGraph& graph, double weight) : c(c), graph(graph), w(std::sqrt(weight)) {}
+  DataCost(const PointConstraint& c, const DeformationGraph& graph, double weight)
+      : c(c), graph(graph), w(std::sqrt(weight)) {}
   template <typename T>
   bool operator()(T const* const* blocks, T* r) const {
     T p[3] = {T(0), T(0), T(0)};
@@ -73,7 +76,8 @@ struct DataCost {
       const Eigen::Vector3d g = graph.nodes.col(c.nodes[k]);
       const Eigen::Vector3d d = c.rest - g;
       for (int a = 0; a < 3; ++a) {
-        p[a] += c.weights[k] * (R[3 * a] * d.x() + R[3 * a + 1] * d.y() + R[3 * a + 2] * d.z() + g[a] + t[a]);
+        p[a] += c.weights[k] *
+                (R[3 * a] * d.x() + R[3 * a + 1] * d.y() + R[3 * a + 2] * d.z() + g[a] + t[a]);
       }
     }
     if (c.normal.isZero()) {
@@ -101,12 +105,16 @@ DeformationState DeformationState::Identity(int num_nodes) {
 }
 
 Eigen::Matrix3d DeformationState::rotation(int j) const {
-  return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(R[static_cast<std::size_t>(j)].data());
+  return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(
+      R[static_cast<std::size_t>(j)].data());
 }
 
-SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph, std::span<const PointConstraint> constraints,
-                                      const EmbeddedDeformationOptions& options, DeformationState* state) {
-  VB_DEMAND(static_cast<int>(state->R.size()) == graph.num_nodes() && static_cast<int>(state->t.size()) == graph.num_nodes());
+SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
+                                      std::span<const PointConstraint> constraints,
+                                      const EmbeddedDeformationOptions& options,
+                                      DeformationState* state) {
+  VB_DEMAND(static_cast<int>(state->R.size()) == graph.num_nodes() &&
+            static_cast<int>(state->t.size()) == graph.num_nodes());
   const auto start = std::chrono::steady_clock::now();
   ceres::Problem::Options problem_options;
   problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
@@ -114,21 +122,27 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph, std::span<c
   const auto R = [state](int j) { return state->R[static_cast<std::size_t>(j)].data(); };
   const auto t = [state](int j) { return state->t[static_cast<std::size_t>(j)].data(); };
   for (int j = 0; j < graph.num_nodes(); ++j) {
-    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<RotationCost, 6, 9>(new RotationCost(options.w_rot)), nullptr, R(j));
+    problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<RotationCost, 6, 9>(new RotationCost(options.w_rot)),
+        nullptr, R(j));
   }
   for (int i = 0; i < graph.num_nodes(); ++i) {
     for (int j : graph.neighbours[static_cast<std::size_t>(i)]) {
       // Eq. (7): for each node i and each j of its mu neighbours.
-      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<RegularisationCost, 3, 9, 3, 3>(
-                                   new RegularisationCost(graph.nodes.col(i), graph.nodes.col(j), options.w_reg)),
-                               nullptr, R(j), t(j), t(i));
+      problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<RegularisationCost, 3, 9, 3, 3>(
+              new RegularisationCost(graph.nodes.col(i), graph.nodes.col(j), options.w_reg)),
+          nullptr, R(j), t(j), t(i));
     }
   }
   for (const auto& [j, k] : graph.bridges) {
-    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<RigidityCost, 9, 9, 9>(new RigidityCost(options.w_rig)), nullptr, R(j), R(k));
+    problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<RigidityCost, 9, 9, 9>(new RigidityCost(options.w_rig)),
+        nullptr, R(j), R(k));
   }
   for (const PointConstraint& c : constraints) {
-    auto* cost = new ceres::DynamicAutoDiffCostFunction<DataCost, 4>(new DataCost(c, graph, options.w_data));
+    auto* cost =
+        new ceres::DynamicAutoDiffCostFunction<DataCost, 4>(new DataCost(c, graph, options.w_data));
     std::vector<double*> blocks;
     for (int node : c.nodes) {
       cost->AddParameterBlock(9);
@@ -161,8 +175,8 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph, std::span<c
   return out;
 }
 
-Eigen::Matrix3Xd DeformPoints(const DeformationGraph& graph, const NodeWeights& weights, const Eigen::Matrix3Xd& rest,
-                              const DeformationState& state) {
+Eigen::Matrix3Xd DeformPoints(const DeformationGraph& graph, const NodeWeights& weights,
+                              const Eigen::Matrix3Xd& rest, const DeformationState& state) {
   VB_DEMAND(weights.nodes.cols() == rest.cols());
   Eigen::Matrix3Xd out = Eigen::Matrix3Xd::Zero(3, rest.cols());
   for (Eigen::Index i = 0; i < rest.cols(); ++i) {
@@ -170,7 +184,8 @@ Eigen::Matrix3Xd DeformPoints(const DeformationGraph& graph, const NodeWeights& 
       const int j = weights.nodes(k, i);
       if (j < 0) continue;
       const Eigen::Vector3d g = graph.nodes.col(j);
-      out.col(i) += weights.weights(k, i) * (state.rotation(j) * (rest.col(i) - g) + g + state.t[static_cast<std::size_t>(j)]);
+      out.col(i) += weights.weights(k, i) * (state.rotation(j) * (rest.col(i) - g) + g +
+                                             state.t[static_cast<std::size_t>(j)]);
     }
   }
   return out;

@@ -1,10 +1,9 @@
 #pragma once
 
+#include <Eigen/Core>
 #include <span>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "morph/deformation_graph.h"
 
@@ -25,7 +24,7 @@ struct DeformationState {
 /// point onto @p target (E_con, eq. 5); otherwise onto the plane through @p target with that
 /// normal (E_plane, eq. 14).
 struct PointConstraint {
-  Eigen::Vector3d rest;    ///< position before deformation
+  Eigen::Vector3d rest;  ///< position before deformation
   Eigen::Vector3d target;
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();
   std::vector<int> nodes;  ///< nodes acting on the point
@@ -54,8 +53,10 @@ struct SolveSummary {
 /// Minimises w_data E_data + w_rot E_rot (6) + w_reg E_reg (7) + w_rig E_rig (8) over the
 /// node transforms with Ceres' Levenberg-Marquardt and a sparse normal Cholesky solver,
 /// starting from @p state.
-SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph, std::span<const PointConstraint> constraints,
-                                      const EmbeddedDeformationOptions& options, DeformationState* state);
+SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
+                                      std::span<const PointConstraint> constraints,
+                                      const EmbeddedDeformationOptions& options,
+                                      DeformationState* state);
 
 /// Eq. (9): moves each column of @p rest by the nodes acting on it.
 /// @param[in] rest 3 by N points; @param[in] weights K by N node influences.

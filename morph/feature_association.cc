@@ -1,10 +1,9 @@
 #include "morph/feature_association.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <limits>
-
-#include <Eigen/Geometry>
 
 namespace vb::morph {
 namespace {
@@ -77,8 +76,10 @@ struct Search {
     c.fit.scale = scale;
     c.fit.R = sR / scale;
     c.fit.t = T.topRightCorner<3, 1>();
-    best.insert(std::upper_bound(best.begin(), best.end(), c, [](const Candidate& x, const Candidate& y) { return x.cost < y.cost; }),
-                std::move(c));
+    best.insert(
+        std::upper_bound(best.begin(), best.end(), c,
+                         [](const Candidate& x, const Candidate& y) { return x.cost < y.cost; }),
+        std::move(c));
     if (best.size() > keep) best.pop_back();
   }
 
@@ -127,13 +128,14 @@ double Permutations(int n, int k) {
 // Keeps @p keep columns of @p points (and their support), ordered by distance to @p centre,
 // farthest first when @p farthest: limb ends are the most telling terminals, central nodes
 // the most reliable junctions.
-void KeepByDistance(const Eigen::Vector3d& centre, int keep, bool farthest, Eigen::Matrix3Xd* points,
-                    std::vector<std::vector<int>>* support) {
+void KeepByDistance(const Eigen::Vector3d& centre, int keep, bool farthest,
+                    Eigen::Matrix3Xd* points, std::vector<std::vector<int>>* support) {
   if (points->cols() <= keep) return;
   std::vector<int> order(static_cast<std::size_t>(points->cols()));
   for (int i = 0; i < points->cols(); ++i) order[static_cast<std::size_t>(i)] = i;
   std::sort(order.begin(), order.end(), [&](int x, int y) {
-    const double dx = (points->col(x) - centre).squaredNorm(), dy = (points->col(y) - centre).squaredNorm();
+    const double dx = (points->col(x) - centre).squaredNorm(),
+                 dy = (points->col(y) - centre).squaredNorm();
     return farthest ? dx > dy : dx < dy;
   });
   Eigen::Matrix3Xd kept(3, keep);
@@ -149,7 +151,8 @@ void KeepByDistance(const Eigen::Vector3d& centre, int keep, bool farthest, Eige
 
 }  // namespace
 
-std::vector<Association> AssociateFeatureNodes(const FeatureNodes& from_in, const FeatureNodes& to_in,
+std::vector<Association> AssociateFeatureNodes(const FeatureNodes& from_in,
+                                               const FeatureNodes& to_in,
                                                const AssociationOptions& options) {
   FeatureNodes from = from_in, to = to_in;
   auto count = [&]() {
@@ -164,18 +167,19 @@ std::vector<Association> AssociateFeatureNodes(const FeatureNodes& from_in, cons
     FeatureNodes& larger_t = from.num_terminals() >= to.num_terminals() ? from : to;
     FeatureNodes& larger_j = from.num_junctions() >= to.num_junctions() ? from : to;
     if (larger_t.num_terminals() > 4) {
-      KeepByDistance(Stack(larger_t).rowwise().mean(), larger_t.num_terminals() - 1, true, &larger_t.terminals,
-                     &larger_t.terminal_support);
+      KeepByDistance(Stack(larger_t).rowwise().mean(), larger_t.num_terminals() - 1, true,
+                     &larger_t.terminals, &larger_t.terminal_support);
     } else if (larger_j.num_junctions() > 1) {
-      KeepByDistance(Stack(larger_j).rowwise().mean(), larger_j.num_junctions() - 1, false, &larger_j.junctions,
-                     &larger_j.junction_support);
+      KeepByDistance(Stack(larger_j).rowwise().mean(), larger_j.num_junctions() - 1, false,
+                     &larger_j.junctions, &larger_j.junction_support);
     } else {
       break;  // at most 4! * 5 * 2 pairings: small
     }
   }
 
   std::vector<Association> results;
-  const int pairs = std::min(from.num_terminals(), to.num_terminals()) + std::min(from.num_junctions(), to.num_junctions());
+  const int pairs = std::min(from.num_terminals(), to.num_terminals()) +
+                    std::min(from.num_junctions(), to.num_junctions());
   if (pairs < 3) return results;
 
   // Search from the side with fewer nodes of each kind; to keep one search tree, `a` is the
@@ -204,7 +208,8 @@ std::vector<Association> AssociateFeatureNodes(const FeatureNodes& from_in, cons
     do {
       junction_subsets.emplace_back();
       for (int j = 0; j < ja; ++j) {
-        if (pick[static_cast<std::size_t>(j)]) junction_subsets.back().push_back(fa.num_terminals() + j);
+        if (pick[static_cast<std::size_t>(j)])
+          junction_subsets.back().push_back(fa.num_terminals() + j);
       }
     } while (std::prev_permutation(pick.begin(), pick.end()));
   }
@@ -222,7 +227,8 @@ std::vector<Association> AssociateFeatureNodes(const FeatureNodes& from_in, cons
     if (!s.best.empty()) break;
   }
   // Map back to the caller's (untrimmed) indices by position.
-  auto original_index = [](const Eigen::Matrix3Xd& trimmed, const Eigen::Matrix3Xd& original, int i) {
+  auto original_index = [](const Eigen::Matrix3Xd& trimmed, const Eigen::Matrix3Xd& original,
+                           int i) {
     for (int k = 0; k < original.cols(); ++k) {
       if (original.col(k) == trimmed.col(i)) return k;
     }
@@ -246,7 +252,8 @@ std::vector<Association> AssociateFeatureNodes(const FeatureNodes& from_in, cons
         to_index = original_index(to.terminals, to_in.terminals, to_index);
         result.terminals.emplace_back(from_index, to_index);
       } else {
-        from_index = original_index(from.junctions, from_in.junctions, from_index - from.num_terminals());
+        from_index =
+            original_index(from.junctions, from_in.junctions, from_index - from.num_terminals());
         to_index = original_index(to.junctions, to_in.junctions, to_index - to.num_terminals());
         result.junctions.emplace_back(from_index, to_index);
       }

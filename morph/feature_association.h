@@ -1,9 +1,8 @@
 #pragma once
 
+#include <Eigen/Core>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "morph/skeleton_graph.h"
 
@@ -24,10 +23,11 @@ struct Association {
   bool ok = false;
   std::vector<std::pair<int, int>> terminals;  ///< (index in `from`, index in `to`)
   std::vector<std::pair<int, int>> junctions;
-  Similarity from_to;                          ///< best fit of the paired nodes, `from` -> `to`
-  double rms_residual = 0.0;  ///< of that fit per residual degree of freedom, with the penalty for unpaired features; `to` units
-  long candidates = 0;                         ///< pairings whose fit was evaluated
-  long pruned = 0;                             ///< partial pairings cut by distance ratios
+  Similarity from_to;         ///< best fit of the paired nodes, `from` -> `to`
+  double rms_residual = 0.0;  ///< of that fit per residual degree of freedom, with the penalty for
+                              ///< unpaired features; `to` units
+  long candidates = 0;        ///< pairings whose fit was evaluated
+  long pruned = 0;            ///< partial pairings cut by distance ratios
 };
 
 struct AssociationOptions {

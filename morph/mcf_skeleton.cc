@@ -1,9 +1,9 @@
 #include "morph/mcf_skeleton.h"
 
 #include <CGAL/Mean_curvature_flow_skeletonization.h>
-#include <CGAL/extract_mean_curvature_flow_skeleton.h>
 #include <CGAL/Simple_cartesian.h>
 #include <CGAL/Surface_mesh.h>
+#include <CGAL/extract_mean_curvature_flow_skeleton.h>
 
 #include "io/error.h"
 
@@ -18,9 +18,11 @@ SkeletonGraph MeanCurvatureFlowSkeleton(const io::TriangleMesh& mesh) {
   SurfaceMesh sm;
   std::vector<SurfaceMesh::Vertex_index> handles;
   handles.reserve(static_cast<std::size_t>(mesh.num_vertices()));
-  for (int i = 0; i < mesh.num_vertices(); ++i) handles.push_back(sm.add_vertex(Point(mesh.V(0, i), mesh.V(1, i), mesh.V(2, i))));
+  for (int i = 0; i < mesh.num_vertices(); ++i)
+    handles.push_back(sm.add_vertex(Point(mesh.V(0, i), mesh.V(1, i), mesh.V(2, i))));
   for (int f = 0; f < mesh.num_faces(); ++f) {
-    const auto face = sm.add_face(handles[static_cast<std::size_t>(mesh.F(0, f))], handles[static_cast<std::size_t>(mesh.F(1, f))],
+    const auto face = sm.add_face(handles[static_cast<std::size_t>(mesh.F(0, f))],
+                                  handles[static_cast<std::size_t>(mesh.F(1, f))],
                                   handles[static_cast<std::size_t>(mesh.F(2, f))]);
     if (face == SurfaceMesh::null_face()) {
       throw InputError("skeleton: face " + std::to_string(f) + " makes the template non-manifold");
@@ -41,7 +43,8 @@ SkeletonGraph MeanCurvatureFlowSkeleton(const io::TriangleMesh& mesh) {
     for (const auto mv : skeleton[v].vertices) out.support[v].push_back(static_cast<int>(mv.idx()));
   }
   for (const auto e : CGAL::make_range(boost::edges(skeleton))) {
-    out.edges.push_back({static_cast<int>(boost::source(e, skeleton)), static_cast<int>(boost::target(e, skeleton))});
+    out.edges.push_back({static_cast<int>(boost::source(e, skeleton)),
+                         static_cast<int>(boost::target(e, skeleton))});
   }
   return out;
 }

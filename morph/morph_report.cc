@@ -1,7 +1,6 @@
 #include "morph/morph_report.h"
 
 #include <fstream>
-
 #include <nlohmann/json.hpp>
 
 namespace vb::morph {
@@ -15,7 +14,8 @@ nlohmann::json Points(const Eigen::Matrix3Xd& P) {
 
 }  // namespace
 
-void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& model, const CoarseResult& r) {
+void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& model,
+                      const CoarseResult& r) {
   nlohmann::json j;
   j["ok"] = r.ok;
   j["error"] = r.error;
@@ -25,13 +25,19 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
                     {"embedded_deformation", r.deformation_seconds},
                     {"coarse_total", r.total_seconds}};
   // Template features are reported in the template's own units.
-  Eigen::Matrix3Xd template_terminals = (model.features.terminals * model.size).colwise() + model.centre;
-  Eigen::Matrix3Xd template_junctions = (model.features.junctions * model.size).colwise() + model.centre;
-  j["template_features"] = {{"terminals", Points(template_terminals)}, {"junctions", Points(template_junctions)}};
-  j["target_features"] = {{"terminals", Points(r.target_features.terminals)}, {"junctions", Points(r.target_features.junctions)}};
+  Eigen::Matrix3Xd template_terminals =
+      (model.features.terminals * model.size).colwise() + model.centre;
+  Eigen::Matrix3Xd template_junctions =
+      (model.features.junctions * model.size).colwise() + model.centre;
+  j["template_features"] = {{"terminals", Points(template_terminals)},
+                            {"junctions", Points(template_junctions)}};
+  j["target_features"] = {{"terminals", Points(r.target_features.terminals)},
+                          {"junctions", Points(r.target_features.junctions)}};
   nlohmann::json pairs = nlohmann::json::array();
-  for (const auto& [a, b] : r.association.terminals) pairs.push_back({{"kind", "terminal"}, {"template", a}, {"target", b}});
-  for (const auto& [a, b] : r.association.junctions) pairs.push_back({{"kind", "junction"}, {"template", a}, {"target", b}});
+  for (const auto& [a, b] : r.association.terminals)
+    pairs.push_back({{"kind", "terminal"}, {"template", a}, {"target", b}});
+  for (const auto& [a, b] : r.association.junctions)
+    pairs.push_back({{"kind", "junction"}, {"template", a}, {"target", b}});
   j["association"] = {{"pairs", pairs},
                       {"rms_residual", r.association.rms_residual},
                       {"candidates_evaluated", r.association.candidates},

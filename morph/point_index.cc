@@ -7,12 +7,16 @@
 namespace vb::morph {
 
 struct PointIndex::Tree {
-  using Adaptor = nanoflann::KDTreeEigenMatrixAdaptor<Eigen::Matrix3Xd, 3, nanoflann::metric_L2_Simple, false>;
-  explicit Tree(const Eigen::Matrix3Xd& points) : adaptor(3, std::cref(points), 16) { adaptor.index->buildIndex(); }
+  using Adaptor =
+      nanoflann::KDTreeEigenMatrixAdaptor<Eigen::Matrix3Xd, 3, nanoflann::metric_L2_Simple, false>;
+  explicit Tree(const Eigen::Matrix3Xd& points) : adaptor(3, std::cref(points), 16) {
+    adaptor.index->buildIndex();
+  }
   Adaptor adaptor;
 };
 
-PointIndex::PointIndex(const Eigen::Matrix3Xd& points) : points_(points), tree_(std::make_unique<Tree>(points)) {}
+PointIndex::PointIndex(const Eigen::Matrix3Xd& points)
+    : points_(points), tree_(std::make_unique<Tree>(points)) {}
 
 PointIndex::~PointIndex() = default;
 

@@ -1,9 +1,8 @@
 #pragma once
 
+#include <Eigen/Core>
 #include <memory>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace vb::morph {
 
@@ -19,7 +18,8 @@ class PointIndex {
   /// Index of the point nearest to @p q. @pre the index holds at least one point.
   int Nearest(const Eigen::Vector3d& q) const;
   /// The (up to) @p k nearest points to @p q, nearest first, with squared distances.
-  void Nearest(const Eigen::Vector3d& q, int k, std::vector<int>* indices, std::vector<double>* squared_distances) const;
+  void Nearest(const Eigen::Vector3d& q, int k, std::vector<int>* indices,
+               std::vector<double>* squared_distances) const;
 
   int size() const { return static_cast<int>(points_.cols()); }
 

@@ -1,13 +1,12 @@
 #include "morph/skeleton_graph.h"
 
 #include <algorithm>
+#include <boost/pending/disjoint_sets.hpp>
 #include <cmath>
 #include <functional>
 #include <limits>
 #include <numeric>
 #include <queue>
-
-#include <boost/pending/disjoint_sets.hpp>
 
 namespace vb::morph {
 
@@ -34,7 +33,8 @@ struct Adjacency {
   }
   int degree(int v, const std::vector<bool>& alive) const {
     int d = 0;
-    for (const auto& [u, length] : next[static_cast<std::size_t>(v)]) d += alive[static_cast<std::size_t>(u)] ? 1 : 0;
+    for (const auto& [u, length] : next[static_cast<std::size_t>(v)])
+      d += alive[static_cast<std::size_t>(u)] ? 1 : 0;
     return d;
   }
 };
@@ -103,7 +103,8 @@ FeatureNodes ExtractFeatureNodes(const SkeletonGraph& skeleton, const FeatureOpt
   boost::disjoint_sets_with_storage<> group(junctions.size());
   for (std::size_t a = 0; a < junctions.size(); ++a) {
     // Bounded Dijkstra from junction a over the living skeleton.
-    std::vector<double> distance(static_cast<std::size_t>(n), std::numeric_limits<double>::infinity());
+    std::vector<double> distance(static_cast<std::size_t>(n),
+                                 std::numeric_limits<double>::infinity());
     using Item = std::pair<double, int>;
     std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;
     distance[static_cast<std::size_t>(junctions[a])] = 0.0;
@@ -111,9 +112,11 @@ FeatureNodes ExtractFeatureNodes(const SkeletonGraph& skeleton, const FeatureOpt
     while (!queue.empty()) {
       const auto [d, v] = queue.top();
       queue.pop();
-      if (d > distance[static_cast<std::size_t>(v)] || d > options.junction_merge_distance) continue;
+      if (d > distance[static_cast<std::size_t>(v)] || d > options.junction_merge_distance)
+        continue;
       for (const auto& [u, l] : adjacency.next[static_cast<std::size_t>(v)]) {
-        if (!alive[static_cast<std::size_t>(u)] || d + l >= distance[static_cast<std::size_t>(u)]) continue;
+        if (!alive[static_cast<std::size_t>(u)] || d + l >= distance[static_cast<std::size_t>(u)])
+          continue;
         distance[static_cast<std::size_t>(u)] = d + l;
         queue.push({d + l, u});
       }
@@ -127,7 +130,9 @@ FeatureNodes ExtractFeatureNodes(const SkeletonGraph& skeleton, const FeatureOpt
 
   FeatureNodes features;
   auto support_of = [&](int v) {
-    return static_cast<std::size_t>(v) < skeleton.support.size() ? skeleton.support[static_cast<std::size_t>(v)] : std::vector<int>{};
+    return static_cast<std::size_t>(v) < skeleton.support.size()
+               ? skeleton.support[static_cast<std::size_t>(v)]
+               : std::vector<int>{};
   };
   features.terminals.resize(3, static_cast<Eigen::Index>(terminals.size()));
   for (std::size_t i = 0; i < terminals.size(); ++i) {

@@ -1,18 +1,17 @@
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace vb::morph {
 
 /// A curve skeleton: nodes with positions and undirected edges. Each node may remember the
 /// surface samples (mesh vertices or cloud points) it stands for.
 struct SkeletonGraph {
-  Eigen::Matrix3Xd nodes;                ///< 3 by #nodes
+  Eigen::Matrix3Xd nodes;  ///< 3 by #nodes
   std::vector<std::array<int, 2>> edges;
-  std::vector<std::vector<int>> support; ///< per node: indices of the samples it represents
+  std::vector<std::vector<int>> support;  ///< per node: indices of the samples it represents
 
   int num_nodes() const { return static_cast<int>(nodes.cols()); }
   /// Number of edges at each node.

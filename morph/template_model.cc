@@ -10,17 +10,22 @@
 
 namespace vb::morph {
 
-TemplateModel BuildTemplateModel(const io::TriangleMesh& mesh, const TemplateModelOptions& options) {
+TemplateModel BuildTemplateModel(const io::TriangleMesh& mesh,
+                                 const TemplateModelOptions& options) {
   const auto start = std::chrono::steady_clock::now();
-  if (mesh.num_vertices() < 4 || mesh.num_faces() < 4) throw InputError("template: too small to be a closed mesh");
+  if (mesh.num_vertices() < 4 || mesh.num_faces() < 4)
+    throw InputError("template: too small to be a closed mesh");
   if (!mesh.V.allFinite()) throw InputError("template: non-finite vertex coordinates");
   const io::TopologyReport topology = io::AnalyzeTopology(mesh);
-  if (!topology.is_closed_manifold() || !topology.is_consistently_oriented() || topology.components != 1) {
-    throw InputError("template: must be one closed, consistently oriented 2-manifold; it has " + topology.Describe());
+  if (!topology.is_closed_manifold() || !topology.is_consistently_oriented() ||
+      topology.components != 1) {
+    throw InputError("template: must be one closed, consistently oriented 2-manifold; it has " +
+                     topology.Describe());
   }
   TemplateModel m;
   m.mesh = mesh;
-  if (io::SignedVolume(m.mesh) < 0.0) m.mesh.F.row(1).swap(m.mesh.F.row(2));  // make it face outwards
+  if (io::SignedVolume(m.mesh) < 0.0)
+    m.mesh.F.row(1).swap(m.mesh.F.row(2));  // make it face outwards
   m.mesh.N = io::VertexNormals(m.mesh);
   m.centre = 0.5 * (mesh.V.rowwise().maxCoeff() + mesh.V.rowwise().minCoeff());
   m.size = io::BoundingBoxDiagonal(mesh.V);
@@ -29,19 +34,21 @@ TemplateModel BuildTemplateModel(const io::TriangleMesh& mesh, const TemplateMod
 
   io::TriangleMesh normalised = m.mesh;
   normalised.V = m.V;
-  m.skeleton = options.feature_source == TemplateModelOptions::FeatureSource::kLevelSet ? CloudSkeleton(m.V)
-                                                                                      : MeanCurvatureFlowSkeleton(normalised);
+  m.skeleton = options.feature_source == TemplateModelOptions::FeatureSource::kLevelSet
+                   ? CloudSkeleton(m.V)
+                   : MeanCurvatureFlowSkeleton(normalised);
   m.features = ExtractFeatureNodes(m.skeleton, options.features);
   if (m.features.num_terminals() + m.features.num_junctions() < 3) {
-    throw InputError("template: its skeleton has " + std::to_string(m.features.num_terminals() + m.features.num_junctions()) +
+    throw InputError("template: its skeleton has " +
+                     std::to_string(m.features.num_terminals() + m.features.num_junctions()) +
                      " feature nodes; at least three are needed to fix a pose");
   }
   m.graph = BuildDeformationGraph(normalised, options.graph);
   m.vertex_weights = VertexWeights(normalised, m.graph, options.graph);
-  m.terminal_weights = PointWeights(m.features.terminals, m.features.terminal_support, m.graph, m.vertex_weights,
-                                    options.graph.vertex_neighbours);
-  m.junction_weights = PointWeights(m.features.junctions, m.features.junction_support, m.graph, m.vertex_weights,
-                                    options.graph.vertex_neighbours);
+  m.terminal_weights = PointWeights(m.features.terminals, m.features.terminal_support, m.graph,
+                                    m.vertex_weights, options.graph.vertex_neighbours);
+  m.junction_weights = PointWeights(m.features.junctions, m.features.junction_support, m.graph,
+                                    m.vertex_weights, options.graph.vertex_neighbours);
   m.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return m;
 }

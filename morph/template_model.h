@@ -32,17 +32,17 @@ struct TemplateModelOptions {
 /// template's normalised frame, x_hat = (x - centre) / size, so every threshold is
 /// relative to the template's size.
 struct TemplateModel {
-  io::TriangleMesh mesh;        ///< as given (original units), with normals
-  Eigen::Vector3d centre;       ///< bounding-box centre
-  double size = 1.0;            ///< bounding-box diagonal
-  Eigen::Matrix3Xd V;           ///< normalised vertex positions
-  SkeletonGraph skeleton;       ///< the skeleton the features come from, normalised
-  FeatureNodes features;        ///< pruned terminals and junctions, normalised
-  DeformationGraph graph;       ///< on the normalised mesh
+  io::TriangleMesh mesh;   ///< as given (original units), with normals
+  Eigen::Vector3d centre;  ///< bounding-box centre
+  double size = 1.0;       ///< bounding-box diagonal
+  Eigen::Matrix3Xd V;      ///< normalised vertex positions
+  SkeletonGraph skeleton;  ///< the skeleton the features come from, normalised
+  FeatureNodes features;   ///< pruned terminals and junctions, normalised
+  DeformationGraph graph;  ///< on the normalised mesh
   NodeWeights vertex_weights;
   NodeWeights terminal_weights;
   NodeWeights junction_weights;
-  double seconds = 0.0;         ///< time to build
+  double seconds = 0.0;  ///< time to build
 
   Eigen::Vector3d Normalise(const Eigen::Vector3d& x) const { return (x - centre) / size; }
   Eigen::Vector3d Denormalise(const Eigen::Vector3d& x) const { return x * size + centre; }
@@ -51,6 +51,7 @@ struct TemplateModel {
 /// Builds the model. @throws InputError naming the defect when the mesh is not a closed,
 /// consistently oriented, connected 2-manifold, or its skeleton has fewer than three
 /// feature nodes.
-TemplateModel BuildTemplateModel(const io::TriangleMesh& mesh, const TemplateModelOptions& options = {});
+TemplateModel BuildTemplateModel(const io::TriangleMesh& mesh,
+                                 const TemplateModelOptions& options = {});
 
 }  // namespace vb::morph

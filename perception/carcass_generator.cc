@@ -1,13 +1,12 @@
 #include "perception/carcass_generator.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <random>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/Geometry>
 
 #include "io/error.h"
 #include "io/mesh_measures.h"
@@ -48,16 +47,19 @@ Eigen::Matrix3d Rotation(double x_deg, double y_deg, double z_deg) {
 CarcassTemplate BuildCarcassTemplate(const TemplateOptions& options) {
   const CarcassShape shape;
   const auto value = [&shape](const Eigen::Vector3d& p) { return shape.Value(p); };
-  io::TriangleMesh fine = MarchingTetrahedra(value, shape.box_min(), shape.box_max(), options.grid_spacing_m);
+  io::TriangleMesh fine =
+      MarchingTetrahedra(value, shape.box_min(), shape.box_max(), options.grid_spacing_m);
   CarcassTemplate t;
   t.mesh = IsotropicRemesh(fine, options.edge_length_m, options.remesh_iterations);
   for (int i = 0; i < t.mesh.num_vertices(); ++i) t.mesh.V.col(i) = shape.Project(t.mesh.V.col(i));
   t.mesh.N = io::VertexNormals(t.mesh);
 
   const io::TopologyReport topology = io::AnalyzeTopology(t.mesh);
-  if (!topology.is_closed_manifold() || !topology.is_consistently_oriented() || topology.components != 1 ||
-      io::SignedVolume(t.mesh) <= 0.0) {
-    throw std::runtime_error("synthetic template is not a closed, oriented, single-piece manifold: " + topology.Describe());
+  if (!topology.is_closed_manifold() || !topology.is_consistently_oriented() ||
+      topology.components != 1 || io::SignedVolume(t.mesh) <= 0.0) {
+    throw std::runtime_error(
+        "synthetic template is not a closed, oriented, single-piece manifold: " +
+        topology.Describe());
   }
 
   t.weights.resize(kNumBones, t.mesh.num_vertices());
@@ -78,14 +80,16 @@ CarcassTemplate BuildCarcassTemplate(const TemplateOptions& options) {
     cut.plane.normal = Eigen::Vector3d::UnitZ();  // towards the gambrel, the part before
     std::vector<io::SectionLoop> loops = io::PlaneSection(t.mesh, cut.plane);
     if (loops.size() != 1 || !loops[0].closed) {
-      throw std::runtime_error(std::string("synthetic template: cut ") + def.name + " meets the surface in " +
-                               std::to_string(loops.size()) + " loops, expected one closed loop");
+      throw std::runtime_error(std::string("synthetic template: cut ") + def.name +
+                               " meets the surface in " + std::to_string(loops.size()) +
+                               " loops, expected one closed loop");
     }
     // The cut must move rigidly with one bone, or the posed cut line would not stay planar.
     for (const io::SurfacePoint& p : loops[0].points) {
       for (int k = 0; k < 3; ++k) {
         if (t.weights(def.bone, t.mesh.F(k, p.face)) != 1.0) {
-          throw std::runtime_error(std::string("synthetic template: cut ") + def.name + " crosses a skinning blend");
+          throw std::runtime_error(std::string("synthetic template: cut ") + def.name +
+                                   " crosses a skinning blend");
         }
       }
     }
@@ -98,7 +102,9 @@ CarcassTemplate BuildCarcassTemplate(const TemplateOptions& options) {
 
 CarcassPose SampleCarcassPose(std::uint64_t seed, const PoseOptions& options) {
   std::mt19937_64 rng(seed);
-  auto uniform = [&rng](double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); };
+  auto uniform = [&rng](double lo, double hi) {
+    return std::uniform_real_distribution<double>(lo, hi)(rng);
+  };
   CarcassPose pose;
   auto& b = pose.bones;
   // Twist on the hook, then the spine: flexion (x), lateral bend (y), axial twist (z).
@@ -125,8 +131,9 @@ CarcassPose SampleCarcassPose(std::uint64_t seed, const PoseOptions& options) {
     b[static_cast<std::size_t>(bone)].girth_scale = body_girth * uniform(0.96, 1.04);
     b[static_cast<std::size_t>(bone)].fat_m = body_fat + uniform(-0.002, 0.002);
   }
-  for (auto [left, right] : {std::pair{kThighLeft, kThighRight}, std::pair{kShankLeft, kShankRight},
-                             std::pair{kUpperArmLeft, kUpperArmRight}, std::pair{kForearmLeft, kForearmRight}}) {
+  for (auto [left, right] :
+       {std::pair{kThighLeft, kThighRight}, std::pair{kShankLeft, kShankRight},
+        std::pair{kUpperArmLeft, kUpperArmRight}, std::pair{kForearmLeft, kForearmRight}}) {
     const double length = uniform(0.92, 1.08);
     const double girth = body_girth * uniform(0.94, 1.06);
     const double fat = uniform(-0.002, 0.005);
@@ -143,7 +150,8 @@ CarcassPose SampleCarcassPose(std::uint64_t seed, const PoseOptions& options) {
     q.normalize();
     pose.X_WorldBody.linear() = q.toRotationMatrix();
     const double m = options.max_translation_m;
-    pose.X_WorldBody.translation() = Eigen::Vector3d(uniform(-m, m), uniform(-m, m), uniform(-m, m));
+    pose.X_WorldBody.translation() =
+        Eigen::Vector3d(uniform(-m, m), uniform(-m, m), uniform(-m, m));
   } else {
     pose.X_WorldBody.linear() = Rotation(0.0, 0.0, uniform(-180, 180));
   }
@@ -174,7 +182,8 @@ PosedCarcass PoseCarcass(const CarcassTemplate& carcass, const CarcassPose& pose
     for (const io::SurfacePoint& p : carcass.annotations.cuts[c].line) {
       sum_squares += std::pow(plane.SignedDistance(io::Evaluate(out.mesh, p)), 2);
     }
-    out.cut_line_rms_m.push_back(std::sqrt(sum_squares / static_cast<double>(carcass.annotations.cuts[c].line.size())));
+    out.cut_line_rms_m.push_back(
+        std::sqrt(sum_squares / static_cast<double>(carcass.annotations.cuts[c].line.size())));
     out.cut_planes.push_back(plane);
   }
   for (int b = 0; b < kNumBones; ++b) {
@@ -197,7 +206,8 @@ io::TriangleMesh AddNormalNoise(const io::TriangleMesh& mesh, double sigma_m, st
   return noisy;
 }
 
-io::PointCloud SampleSurfaceCloud(const PosedCarcass& carcass, const CloudOptions& options, std::uint64_t seed) {
+io::PointCloud SampleSurfaceCloud(const PosedCarcass& carcass, const CloudOptions& options,
+                                  std::uint64_t seed) {
   const io::TriangleMesh& mesh = carcass.mesh;
   VB_DEMAND(mesh.num_faces() > 0 && options.num_points > 0);
   std::mt19937_64 rng(seed);
@@ -223,7 +233,8 @@ io::PointCloud SampleSurfaceCloud(const PosedCarcass& carcass, const CloudOption
   std::vector<std::pair<Eigen::Vector3d, double>> holes;
   const double diagonal = io::BoundingBoxDiagonal(mesh.V);
   for (int h = 0; options.missing_regions && h < options.num_holes; ++h) {
-    const int vertex = std::min(static_cast<int>(unit(rng) * mesh.num_vertices()), mesh.num_vertices() - 1);
+    const int vertex =
+        std::min(static_cast<int>(unit(rng) * mesh.num_vertices()), mesh.num_vertices() - 1);
     holes.emplace_back(mesh.V.col(vertex), diagonal * (0.04 + 0.04 * unit(rng)));
   }
 
@@ -233,7 +244,9 @@ io::PointCloud SampleSurfaceCloud(const PosedCarcass& carcass, const CloudOption
   for (int s = 0; s < options.num_points; ++s) {
     const double r = unit(rng) * total;
     const int f = static_cast<int>(std::min<std::ptrdiff_t>(
-        std::lower_bound(cumulative_area.begin(), cumulative_area.end(), r) - cumulative_area.begin(), mesh.num_faces() - 1));
+        std::lower_bound(cumulative_area.begin(), cumulative_area.end(), r) -
+            cumulative_area.begin(),
+        mesh.num_faces() - 1));
     double u = unit(rng), v = unit(rng);
     if (u + v > 1.0) {
       u = 1.0 - u;
@@ -248,9 +261,9 @@ io::PointCloud SampleSurfaceCloud(const PosedCarcass& carcass, const CloudOption
     n.normalize();
     const double offset = options.sigma_m > 0.0 ? noise(rng) : 0.0;
     if (options.missing_regions) {
-      const bool seen = std::any_of(cameras.begin(), cameras.end(), [&](const Eigen::Vector3d& camera) {
-        return n.dot((camera - p).normalized()) > 0.15;
-      });
+      const bool seen = std::any_of(
+          cameras.begin(), cameras.end(),
+          [&](const Eigen::Vector3d& camera) { return n.dot((camera - p).normalized()) > 0.15; });
       const bool in_hole = std::any_of(holes.begin(), holes.end(), [&](const auto& hole) {
         return (p - hole.first).norm() < hole.second;
       });

@@ -1,10 +1,9 @@
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
 #include <cstdint>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "io/annotations.h"
 #include "io/plane.h"
@@ -26,8 +25,8 @@ struct CarcassTemplate {
 };
 
 struct TemplateOptions {
-  double grid_spacing_m = 0.009;      ///< marching-tetrahedra grid
-  double edge_length_m = 0.0118;      ///< isotropic remeshing target
+  double grid_spacing_m = 0.009;  ///< marching-tetrahedra grid
+  double edge_length_m = 0.0118;  ///< isotropic remeshing target
   int remesh_iterations = 5;
 };
 
@@ -76,6 +75,7 @@ struct CloudOptions {
 
 /// Samples points uniformly over the surface of @p carcass.mesh (no connectivity, no
 /// normals), noisy along the surface normal, optionally with the regions a rig would miss.
-io::PointCloud SampleSurfaceCloud(const PosedCarcass& carcass, const CloudOptions& options, std::uint64_t seed);
+io::PointCloud SampleSurfaceCloud(const PosedCarcass& carcass, const CloudOptions& options,
+                                  std::uint64_t seed);
 
 }  // namespace vb::perception

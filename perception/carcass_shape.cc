@@ -56,7 +56,8 @@ double Profile(double z, double ProfileKnot::*column) {
 }
 
 // Tapered capsule from a (radius ra) to b (radius rb).
-double RoundCone(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b, double ra, double rb) {
+double RoundCone(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                 double ra, double rb) {
   const Eigen::Vector3d ab = b - a;
   const double t = std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
   return (p - (a + t * ab)).norm() - (ra + t * (rb - ra));
@@ -82,7 +83,8 @@ double CarcassShape::Torso(const Eigen::Vector3d& p) const {
   // Rounded ends: a 2D rounded-box distance in (side, along).
   const double e1 = side + kTorsoRounding;
   const double e2 = along + kTorsoRounding;
-  return std::hypot(std::max(e1, 0.0), std::max(e2, 0.0)) + std::min(std::max(e1, e2), 0.0) - kTorsoRounding;
+  return std::hypot(std::max(e1, 0.0), std::max(e2, 0.0)) + std::min(std::max(e1, e2), 0.0) -
+         kTorsoRounding;
 }
 
 double CarcassShape::LimbValue(const Limb& limb, const Eigen::Vector3d& p) const {
@@ -139,9 +141,12 @@ std::array<double, kNumBones> CarcassShape::SkinWeights(const Eigen::Vector3d& p
   std::array<double, kNumBones> w{};
   // Torso: pelvis, lumbar, thorax, neck by height, with smooth transitions at the joints.
   const double torso = region[0] / total;
-  const double below_pelvis = 1.0 - SmoothStep((p.z() - (kSpineJointZ[0] - kJointBlend)) / (2 * kJointBlend));
-  const double below_lumbar = 1.0 - SmoothStep((p.z() - (kSpineJointZ[1] - kJointBlend)) / (2 * kJointBlend));
-  const double below_thorax = 1.0 - SmoothStep((p.z() - (kSpineJointZ[2] - kJointBlend)) / (2 * kJointBlend));
+  const double below_pelvis =
+      1.0 - SmoothStep((p.z() - (kSpineJointZ[0] - kJointBlend)) / (2 * kJointBlend));
+  const double below_lumbar =
+      1.0 - SmoothStep((p.z() - (kSpineJointZ[1] - kJointBlend)) / (2 * kJointBlend));
+  const double below_thorax =
+      1.0 - SmoothStep((p.z() - (kSpineJointZ[2] - kJointBlend)) / (2 * kJointBlend));
   w[kPelvis] = torso * (1.0 - below_pelvis);
   w[kLumbar] = torso * (below_pelvis - below_lumbar);
   w[kThorax] = torso * (below_lumbar - below_thorax);

@@ -29,7 +29,8 @@ namespace {
 // Bone-local frame: third column along the bone, the others any right-handed completion.
 Eigen::Matrix3d RestFrame(const RestBone& bone) {
   const Eigen::Vector3d axis = (bone.tail - bone.pivot).normalized();
-  const Eigen::Vector3d helper = std::abs(axis.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+  const Eigen::Vector3d helper =
+      std::abs(axis.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
   const Eigen::Vector3d x = (helper - axis * axis.dot(helper)).normalized();
   Eigen::Matrix3d R;
   R.col(0) = x;

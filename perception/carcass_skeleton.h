@@ -1,10 +1,9 @@
 #pragma once
 
-#include <array>
-#include <string_view>
-
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <array>
+#include <string_view>
 
 namespace vb::perception {
 
@@ -66,13 +65,15 @@ class PosedSkeleton {
   /// Rotation of bone @p b in the world (normals of planes attached to it turn by this).
   Eigen::Matrix3d WorldRotation(int b) const;
 
-  Eigen::Vector3d pivot_world(int b) const { return ToWorld(pivot_body_[static_cast<std::size_t>(b)]); }
+  Eigen::Vector3d pivot_world(int b) const {
+    return ToWorld(pivot_body_[static_cast<std::size_t>(b)]);
+  }
   Eigen::Vector3d tail_world(int b) const;
 
  private:
   const CarcassPose& pose_;
-  std::array<Eigen::Matrix3d, kNumBones> R_rest_;   // columns: bone-local x, y, axis
-  std::array<Eigen::Matrix3d, kNumBones> A_;        // accumulated pose rotation
+  std::array<Eigen::Matrix3d, kNumBones> R_rest_;  // columns: bone-local x, y, axis
+  std::array<Eigen::Matrix3d, kNumBones> A_;       // accumulated pose rotation
   std::array<Eigen::Vector3d, kNumBones> pivot_body_;
 };
 

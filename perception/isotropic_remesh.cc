@@ -1,16 +1,17 @@
 #include "perception/isotropic_remesh.h"
 
-#include <vector>
-
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/remesh.h>
 #include <CGAL/Surface_mesh.h>
+
+#include <vector>
 
 #include "io/error.h"
 
 namespace vb::perception {
 
-io::TriangleMesh IsotropicRemesh(const io::TriangleMesh& mesh, double target_edge_length, int iterations) {
+io::TriangleMesh IsotropicRemesh(const io::TriangleMesh& mesh, double target_edge_length,
+                                 int iterations) {
   using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
   using Point = Kernel::Point_3;
   using SurfaceMesh = CGAL::Surface_mesh<Point>;
@@ -23,12 +24,14 @@ io::TriangleMesh IsotropicRemesh(const io::TriangleMesh& mesh, double target_edg
     handles.push_back(sm.add_vertex(Point(mesh.V(0, i), mesh.V(1, i), mesh.V(2, i))));
   }
   for (int f = 0; f < mesh.num_faces(); ++f) {
-    const auto face = sm.add_face(handles[static_cast<std::size_t>(mesh.F(0, f))], handles[static_cast<std::size_t>(mesh.F(1, f))],
+    const auto face = sm.add_face(handles[static_cast<std::size_t>(mesh.F(0, f))],
+                                  handles[static_cast<std::size_t>(mesh.F(1, f))],
                                   handles[static_cast<std::size_t>(mesh.F(2, f))]);
     VB_DEMAND(face != SurfaceMesh::null_face());
   }
   CGAL::Polygon_mesh_processing::isotropic_remeshing(
-      faces(sm), target_edge_length, sm, CGAL::parameters::number_of_iterations(static_cast<unsigned int>(iterations)));
+      faces(sm), target_edge_length, sm,
+      CGAL::parameters::number_of_iterations(static_cast<unsigned int>(iterations)));
   sm.collect_garbage();
 
   io::TriangleMesh out;

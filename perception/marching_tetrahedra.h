@@ -1,8 +1,7 @@
 #pragma once
 
-#include <functional>
-
 #include <Eigen/Core>
+#include <functional>
 
 #include "io/triangle_mesh.h"
 
@@ -15,6 +14,7 @@ namespace vb::perception {
 /// Grid values within 1e-4 h of zero are nudged positive so no vertex sits on a grid node.
 /// @pre h > 0 and the box holds at least one cube.
 io::TriangleMesh MarchingTetrahedra(const std::function<double(const Eigen::Vector3d&)>& f,
-                                    const Eigen::Vector3d& box_min, const Eigen::Vector3d& box_max, double h);
+                                    const Eigen::Vector3d& box_min, const Eigen::Vector3d& box_max,
+                                    double h);
 
 }  // namespace vb::perception

@@ -13,9 +13,9 @@ struct SyntheticSetOptions {
   std::filesystem::path out_dir;
   int count = 5;
   std::uint64_t seed = 1;
-  double sigma_mm = 0.0;        ///< noise along vertex normals (and cloud normals)
-  bool cloud = false;           ///< also write a sampled point cloud per target
-  bool missing_regions = false; ///< clouds lack what a camera ring misses, plus holes
+  double sigma_mm = 0.0;         ///< noise along vertex normals (and cloud normals)
+  bool cloud = false;            ///< also write a sampled point cloud per target
+  bool missing_regions = false;  ///< clouds lack what a camera ring misses, plus holes
   int cloud_points = 20000;
   bool arbitrary_orientation = true;
 

@@ -1,13 +1,12 @@
 #include "tools/bench_command.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <numbers>
 #include <random>
-
-#include <Eigen/Geometry>
 
 #include "io/error.h"
 #include "io/mesh_io.h"
@@ -26,7 +25,8 @@ struct Row {
   int index = 0;
   bool ok = false;
   bool association_correct = false;
-  double rigid_mean = 0, rigid_max = 0, coarse_mean = 0, coarse_max = 0;  // fractions of target diagonal
+  double rigid_mean = 0, rigid_max = 0, coarse_mean = 0,
+         coarse_max = 0;  // fractions of target diagonal
   double coarse_mean_mm = 0;
   double skeleton_s = 0, association_s = 0, deformation_s = 0, total_s = 0;
   int template_features = 0, target_features = 0, pairs = 0;
@@ -40,18 +40,21 @@ double Median(std::vector<double> v) {
 }
 
 // True position of each template feature in the target: the mean of its support vertices there.
-Eigen::Matrix3Xd TrueFeaturePositions(const Eigen::Matrix3Xd& features, const std::vector<std::vector<int>>& support,
+Eigen::Matrix3Xd TrueFeaturePositions(const Eigen::Matrix3Xd& features,
+                                      const std::vector<std::vector<int>>& support,
                                       const Eigen::Matrix3Xd& truth) {
   Eigen::Matrix3Xd out(3, features.cols());
   for (Eigen::Index i = 0; i < features.cols(); ++i) {
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     for (int v : support[static_cast<std::size_t>(i)]) sum += truth.col(v);
-    out.col(i) = sum / std::max<double>(1.0, static_cast<double>(support[static_cast<std::size_t>(i)].size()));
+    out.col(i) = sum / std::max<double>(
+                           1.0, static_cast<double>(support[static_cast<std::size_t>(i)].size()));
   }
   return out;
 }
 
-bool PairsCorrect(const std::vector<std::pair<int, int>>& pairs, const Eigen::Matrix3Xd& truth_of_template, const Eigen::Matrix3Xd& target) {
+bool PairsCorrect(const std::vector<std::pair<int, int>>& pairs,
+                  const Eigen::Matrix3Xd& truth_of_template, const Eigen::Matrix3Xd& target) {
   for (const auto& [a, b] : pairs) {
     Eigen::Index nearest = 0;
     (target.colwise() - truth_of_template.col(a)).colwise().squaredNorm().minCoeff(&nearest);
@@ -60,8 +63,8 @@ bool PairsCorrect(const std::vector<std::pair<int, int>>& pairs, const Eigen::Ma
   return true;
 }
 
-Row Evaluate(const morph::TemplateModel& model, const Eigen::Matrix3Xd& input, const Eigen::Matrix3Xd& truth,
-             const morph::CoarseOptions& coarse) {
+Row Evaluate(const morph::TemplateModel& model, const Eigen::Matrix3Xd& input,
+             const Eigen::Matrix3Xd& truth, const morph::CoarseOptions& coarse) {
   Row row;
   const morph::CoarseResult r = morph::AlignCoarse(model, input, coarse);
   row.ok = r.ok;
@@ -75,15 +78,20 @@ Row Evaluate(const morph::TemplateModel& model, const Eigen::Matrix3Xd& input, c
   const double diagonal = io::BoundingBoxDiagonal(truth);
   if (r.association.ok) {
     Eigen::Matrix3Xd rigid(3, model.V.cols());
-    for (Eigen::Index i = 0; i < model.V.cols(); ++i) rigid.col(i) = r.association.from_to(model.V.col(i));
+    for (Eigen::Index i = 0; i < model.V.cols(); ++i)
+      rigid.col(i) = r.association.from_to(model.V.col(i));
     const Eigen::VectorXd e = (rigid - truth).colwise().norm();
     row.rigid_mean = e.mean() / diagonal;
     row.rigid_max = e.maxCoeff() / diagonal;
     row.association_correct =
-        PairsCorrect(r.association.terminals, TrueFeaturePositions(model.features.terminals, model.features.terminal_support, truth),
-                     r.target_features.terminals) &&
-        PairsCorrect(r.association.junctions, TrueFeaturePositions(model.features.junctions, model.features.junction_support, truth),
-                     r.target_features.junctions);
+        PairsCorrect(
+            r.association.terminals,
+            TrueFeaturePositions(model.features.terminals, model.features.terminal_support, truth),
+            r.target_features.terminals) &&
+        PairsCorrect(
+            r.association.junctions,
+            TrueFeaturePositions(model.features.junctions, model.features.junction_support, truth),
+            r.target_features.junctions);
   }
   if (r.ok) {
     const Eigen::VectorXd e = (r.mesh.V - truth).colwise().norm();
@@ -113,14 +121,16 @@ io::TriangleMesh Bend(const io::TriangleMesh& mesh, std::uint64_t seed) {
   for (int i = 0; i < mesh.num_vertices(); ++i) {
     const Eigen::Vector3d p = mesh.V.col(i) - centre;
     const double s = std::clamp(p.dot(along) / half, -1.0, 1.0);
-    const Eigen::Vector3d bent = Eigen::AngleAxisd(bend * s * std::abs(s), across) * (Eigen::AngleAxisd(twist * s, along) * p);
+    const Eigen::Vector3d bent = Eigen::AngleAxisd(bend * s * std::abs(s), across) *
+                                 (Eigen::AngleAxisd(twist * s, along) * p);
     out.V.col(i) = scale * (q * bent);
   }
   out.N = io::VertexNormals(out);
   return out;
 }
 
-void Summarise(const std::vector<Row>& rows, const std::string& shape, const std::string& input, double sigma) {
+void Summarise(const std::vector<Row>& rows, const std::string& shape, const std::string& input,
+               double sigma) {
   std::vector<double> rigid, coarse_mean, coarse_max, total, skeleton, association, deformation;
   int ok = 0, correct = 0, n = 0;
   for (const Row& r : rows) {
@@ -143,16 +153,19 @@ void Summarise(const std::vector<Row>& rows, const std::string& shape, const std
     for (double x : v) s += x;
     return v.empty() ? std::nan("") : s / static_cast<double>(v.size());
   };
-  std::printf("| %-10s | %-9s | %5.0f | %3d | %5.1f %% | %6.1f %% | %7.2f %% | %7.2f %% | %7.2f %% | %6.3f | %6.3f | %6.3f | %6.3f |\n",
-              shape.c_str(), input.c_str(), sigma, n, 100.0 * ok / n, 100.0 * correct / n, 100 * mean(rigid),
-              100 * mean(coarse_mean), 100 * mean(coarse_max), Median(skeleton), Median(association), Median(deformation),
-              Median(total));
+  std::printf(
+      "| %-10s | %-9s | %5.0f | %3d | %5.1f %% | %6.1f %% | %7.2f %% | %7.2f %% | %7.2f %% | %6.3f "
+      "| %6.3f | %6.3f | %6.3f |\n",
+      shape.c_str(), input.c_str(), sigma, n, 100.0 * ok / n, 100.0 * correct / n,
+      100 * mean(rigid), 100 * mean(coarse_mean), 100 * mean(coarse_max), Median(skeleton),
+      Median(association), Median(deformation), Median(total));
 }
 
 }  // namespace
 
 int RunBenchCommand(const BenchOptions& options) {
-  if (options.stage != "coarse") throw InputError("bench: stage '" + options.stage + "' is not built yet; use 'coarse'");
+  if (options.stage != "coarse")
+    throw InputError("bench: stage '" + options.stage + "' is not built yet; use 'coarse'");
   if (options.pairs < 1) throw InputError("bench: --pairs must be positive");
   std::vector<Row> rows;
   std::vector<std::tuple<std::string, std::string, double>> groups;
@@ -162,20 +175,24 @@ int RunBenchCommand(const BenchOptions& options) {
   if (options.template_features == "mcf") {
     model_options.feature_source = morph::TemplateModelOptions::FeatureSource::kMeanCurvatureFlow;
   } else if (options.template_features != "levelset") {
-    throw InputError("bench: --template-features: '" + options.template_features + "' is neither 'mcf' nor 'levelset'");
+    throw InputError("bench: --template-features: '" + options.template_features +
+                     "' is neither 'mcf' nor 'levelset'");
   }
   const morph::TemplateModel lamb = morph::BuildTemplateModel(carcass.mesh, model_options);
   const morph::CoarseOptions coarse;
-  std::printf("lamb template: %d vertices, model built in %.2f s (%d terminals, %d junctions, %d graph nodes)\n",
-              lamb.mesh.num_vertices(), lamb.seconds, lamb.features.num_terminals(), lamb.features.num_junctions(),
-              lamb.graph.num_nodes());
+  std::printf(
+      "lamb template: %d vertices, model built in %.2f s (%d terminals, %d junctions, %d graph "
+      "nodes)\n",
+      lamb.mesh.num_vertices(), lamb.seconds, lamb.features.num_terminals(),
+      lamb.features.num_junctions(), lamb.graph.num_nodes());
   for (double sigma : options.sigmas_mm) {
     for (const char* input : {"mesh", "cloud"}) {
       if (std::string(input) == "cloud" && !options.clouds) continue;
       groups.emplace_back("lamb", input, sigma);
       for (int i = 0; i < options.pairs; ++i) {
         const std::uint64_t seed = options.seed * 1000003 + static_cast<std::uint64_t>(i);
-        const perception::PosedCarcass truth = perception::PoseCarcass(carcass, perception::SampleCarcassPose(seed));
+        const perception::PosedCarcass truth =
+            perception::PoseCarcass(carcass, perception::SampleCarcassPose(seed));
         Eigen::Matrix3Xd points;
         if (std::string(input) == "mesh") {
           points = perception::AddNormalNoise(truth.mesh, sigma / 1000.0, seed + 17).V;
@@ -205,16 +222,19 @@ int RunBenchCommand(const BenchOptions& options) {
       continue;
     }
     const std::string name = path.stem().string();
-    std::printf("%s: %d vertices, model built in %.2f s (%d terminals, %d junctions, %d graph nodes)\n", name.c_str(),
-                mesh.num_vertices(), model.seconds, model.features.num_terminals(), model.features.num_junctions(),
-                model.graph.num_nodes());
+    std::printf(
+        "%s: %d vertices, model built in %.2f s (%d terminals, %d junctions, %d graph nodes)\n",
+        name.c_str(), mesh.num_vertices(), model.seconds, model.features.num_terminals(),
+        model.features.num_junctions(), model.graph.num_nodes());
     const double size = io::BoundingBoxDiagonal(mesh.V);
     for (double sigma : options.sigmas_mm) {
       groups.emplace_back(name, "mesh", sigma);
       for (int i = 0; i < options.shape_pairs; ++i) {
-        const io::TriangleMesh truth = Bend(model.mesh, options.seed * 7919 + static_cast<std::uint64_t>(i));
+        const io::TriangleMesh truth =
+            Bend(model.mesh, options.seed * 7919 + static_cast<std::uint64_t>(i));
         // Noise relative to size as for a 1.2 m carcass, so shapes in other units compare.
-        const Eigen::Matrix3Xd points = perception::AddNormalNoise(truth, sigma / 1000.0 * size / 1.2, 31 + i).V;
+        const Eigen::Matrix3Xd points =
+            perception::AddNormalNoise(truth, sigma / 1000.0 * size / 1.2, 31 + i).V;
         Row row = Evaluate(model, points, truth.V, coarse);
         row.shape = name;
         row.input = "mesh";
@@ -225,20 +245,29 @@ int RunBenchCommand(const BenchOptions& options) {
     }
   }
 
-  std::printf("\n| shape      | input     | sigma |   n |   ok    | assoc ok | rigid mean | coarse mean | coarse max | skel s | assoc s | ED s   | total s |\n");
-  std::printf("|------------|-----------|-------|-----|---------|----------|------------|-------------|------------|--------|---------|--------|---------|\n");
+  std::printf(
+      "\n| shape      | input     | sigma |   n |   ok    | assoc ok | rigid mean | coarse mean | "
+      "coarse max | skel s | assoc s | ED s   | total s |\n");
+  std::printf(
+      "|------------|-----------|-------|-----|---------|----------|------------|-------------|----"
+      "--------|--------|---------|--------|---------|\n");
   for (const auto& [shape, input, sigma] : groups) Summarise(rows, shape, input, sigma);
-  std::printf("errors are per-vertex distances to the ground truth as %% of the target's bounding-box diagonal (mean over "
-              "targets); times are medians on this machine\n");
+  std::printf(
+      "errors are per-vertex distances to the ground truth as %% of the target's bounding-box "
+      "diagonal (mean over "
+      "targets); times are medians on this machine\n");
 
   std::ofstream csv(options.csv);
-  csv << "shape,input,sigma_mm,index,ok,association_correct,rigid_mean_rel,rigid_max_rel,coarse_mean_rel,coarse_max_rel,"
-         "coarse_mean_mm,skeleton_s,association_s,deformation_s,total_s,template_features,target_features,pairs\n";
+  csv << "shape,input,sigma_mm,index,ok,association_correct,rigid_mean_rel,rigid_max_rel,coarse_"
+         "mean_rel,coarse_max_rel,"
+         "coarse_mean_mm,skeleton_s,association_s,deformation_s,total_s,template_features,target_"
+         "features,pairs\n";
   for (const Row& r : rows) {
-    csv << r.shape << ',' << r.input << ',' << r.sigma_mm << ',' << r.index << ',' << r.ok << ',' << r.association_correct << ','
-        << r.rigid_mean << ',' << r.rigid_max << ',' << r.coarse_mean << ',' << r.coarse_max << ',' << r.coarse_mean_mm << ','
-        << r.skeleton_s << ',' << r.association_s << ',' << r.deformation_s << ',' << r.total_s << ',' << r.template_features << ','
-        << r.target_features << ',' << r.pairs << '\n';
+    csv << r.shape << ',' << r.input << ',' << r.sigma_mm << ',' << r.index << ',' << r.ok << ','
+        << r.association_correct << ',' << r.rigid_mean << ',' << r.rigid_max << ','
+        << r.coarse_mean << ',' << r.coarse_max << ',' << r.coarse_mean_mm << ',' << r.skeleton_s
+        << ',' << r.association_s << ',' << r.deformation_s << ',' << r.total_s << ','
+        << r.template_features << ',' << r.target_features << ',' << r.pairs << '\n';
   }
   std::printf("wrote %s\n", options.csv.string().c_str());
   return 0;

@@ -25,14 +25,18 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   const morph::CoarseResult result = morph::AlignCoarse(model, target.points);
   if (!options.report_path.empty()) morph::WriteMorphReport(options.report_path, model, result);
   if (!result.ok) {
-    std::fprintf(stderr, "vbutcher: morph: %s: %s\n", options.target_path.string().c_str(), result.error.c_str());
+    std::fprintf(stderr, "vbutcher: morph: %s: %s\n", options.target_path.string().c_str(),
+                 result.error.c_str());
     return 3;
   }
   io::WriteMesh(options.out_path, result.mesh);
-  std::printf("morph: template model %.2f s; target skeleton %.3f s, association %.3f s (%ld candidates, rms %.4g), "
-              "deformation %.3f s (%d iterations); coarse total %.3f s\n",
-              model.seconds, result.skeleton_seconds, result.association_seconds, result.association.candidates,
-              result.association.rms_residual, result.deformation_seconds, result.deformation.iterations, result.total_seconds);
+  std::printf(
+      "morph: template model %.2f s; target skeleton %.3f s, association %.3f s (%ld candidates, "
+      "rms %.4g), "
+      "deformation %.3f s (%d iterations); coarse total %.3f s\n",
+      model.seconds, result.skeleton_seconds, result.association_seconds,
+      result.association.candidates, result.association.rms_residual, result.deformation_seconds,
+      result.deformation.iterations, result.total_seconds);
   return 0;
 }
 

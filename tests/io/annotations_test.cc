@@ -26,7 +26,8 @@ Annotations Example() {
 
 const char* kValid =
     "format: vbutcher-annotations\nversion: 1\ntemplate: box\nvertex_count: 8\nface_count: 12\n"
-    "parts: [top, bottom]\ncuts:\n  - name: middle\n    plane: {point: [0, 0, 0.5], normal: [0, 0, 2]}\n"
+    "parts: [top, bottom]\ncuts:\n  - name: middle\n    plane: {point: [0, 0, 0.5], normal: [0, 0, "
+    "2]}\n"
     "    line:\n      - [0, 0.5, 0.5, 0]\n      - [1, 0, 1, 0]\n      - [2, 0, 0, 1]\n";
 
 void ExpectRejected(const test::TempDir& dir, const std::string& text, const char* fragment) {
@@ -35,7 +36,8 @@ void ExpectRejected(const test::TempDir& dir, const std::string& text, const cha
     ADD_FAILURE() << "no error for:\n" << text;
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("a.yaml"), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what() << " lacks " << fragment;
+    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos)
+        << e.what() << " lacks " << fragment;
   }
 }
 
@@ -74,14 +76,16 @@ TEST(AnnotationsTest, RejectsBadContentNamingKeyAndLine) {
   ExpectRejected(dir, replace("vbutcher-annotations", "something-else"), "format");
   ExpectRejected(dir, replace("version: 1", "version: 2"), "version: 2 is not supported");
   ExpectRejected(dir, replace("face_count: 12\n", ""), "face_count: missing");
-  ExpectRejected(dir, replace("[1, 0, 1, 0]", "[12, 0, 1, 0]"), "cuts[0].line[1].face: 12 is outside [0, 12)");
+  ExpectRejected(dir, replace("[1, 0, 1, 0]", "[12, 0, 1, 0]"),
+                 "cuts[0].line[1].face: 12 is outside [0, 12)");
   ExpectRejected(dir, replace("[2, 0, 0, 1]", "[2, 0.5, 0, 1]"), "sum to");
   ExpectRejected(dir, replace("[2, 0, 0, 1]", "[2, -1, 1, 1]"), "outside [0, 1]");
   ExpectRejected(dir, replace("[2, 0, 0, 1]", "[2, 0, 1]"), "expected [face, b0, b1, b2]");
   ExpectRejected(dir, replace("normal: [0, 0, 2]", "normal: [0, 0, 0]"), "normal: is zero");
   ExpectRejected(dir, replace("normal: [0, 0, 2]", "normal: [0, .nan, 1]"), "not finite");
   ExpectRejected(dir, replace("parts: [top, bottom]", "parts: [top]"), "1 cuts make 2 parts");
-  ExpectRejected(dir, replace("point: [0, 0, 0.5]", "point: [0, zero, 0.5]"), "cuts[0].plane.point[1]");
+  ExpectRejected(dir, replace("point: [0, 0, 0.5]", "point: [0, zero, 0.5]"),
+                 "cuts[0].plane.point[1]");
   ExpectRejected(dir, "format: [unclosed\n", "not valid YAML");
   ExpectRejected(dir, replace("    line:", "    line: 3\n    other:"), "cuts[0].line");
   // The line number points at the offending entry.

@@ -21,7 +21,8 @@ class MeshRoundTripTest : public ::testing::TestWithParam<MeshCase> {};
 // Irregular coordinates so any reordering or rounding shows.
 TriangleMesh TestMesh(bool normals) {
   TriangleMesh mesh = test::Sphere(0.7, 2);
-  for (int i = 0; i < mesh.num_vertices(); ++i) mesh.V.col(i) += Eigen::Vector3d(0.1 * i, -1.0 / 3.0, 1e-7 * i * i);
+  for (int i = 0; i < mesh.num_vertices(); ++i)
+    mesh.V.col(i) += Eigen::Vector3d(0.1 * i, -1.0 / 3.0, 1e-7 * i * i);
   if (normals) mesh.N = VertexNormals(mesh);
   return mesh;
 }
@@ -42,20 +43,21 @@ TEST_P(MeshRoundTripTest, KeepsVertexOrderFacesAndNormalsExactly) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(AllMeshFormats, MeshRoundTripTest,
-                         ::testing::Values(MeshCase{"m.ply", PlyEncoding::kBinaryLittleEndian, false},
-                                           MeshCase{"m.ply", PlyEncoding::kBinaryLittleEndian, true},
-                                           MeshCase{"m.ply", PlyEncoding::kAscii, false},
-                                           MeshCase{"m.ply", PlyEncoding::kAscii, true},
-                                           MeshCase{"m.off", PlyEncoding::kAscii, false},
-                                           MeshCase{"m.off", PlyEncoding::kAscii, true},
-                                           MeshCase{"m.obj", PlyEncoding::kAscii, false},
-                                           MeshCase{"m.obj", PlyEncoding::kAscii, true}),
-                         [](const ::testing::TestParamInfo<MeshCase>& info) {
-                           std::string name = info.param.file + 2;  // extension
-                           if (name == "ply") name += info.param.encoding == PlyEncoding::kAscii ? "_ascii" : "_binary";
-                           return name + (info.param.normals ? "_normals" : "_plain");
-                         });
+INSTANTIATE_TEST_SUITE_P(
+    AllMeshFormats, MeshRoundTripTest,
+    ::testing::Values(MeshCase{"m.ply", PlyEncoding::kBinaryLittleEndian, false},
+                      MeshCase{"m.ply", PlyEncoding::kBinaryLittleEndian, true},
+                      MeshCase{"m.ply", PlyEncoding::kAscii, false},
+                      MeshCase{"m.ply", PlyEncoding::kAscii, true},
+                      MeshCase{"m.off", PlyEncoding::kAscii, false},
+                      MeshCase{"m.off", PlyEncoding::kAscii, true},
+                      MeshCase{"m.obj", PlyEncoding::kAscii, false},
+                      MeshCase{"m.obj", PlyEncoding::kAscii, true}),
+    [](const ::testing::TestParamInfo<MeshCase>& info) {
+      std::string name = info.param.file + 2;  // extension
+      if (name == "ply") name += info.param.encoding == PlyEncoding::kAscii ? "_ascii" : "_binary";
+      return name + (info.param.normals ? "_normals" : "_plain");
+    });
 
 class CloudRoundTripTest : public ::testing::TestWithParam<const char*> {};
 
@@ -76,7 +78,8 @@ TEST_P(CloudRoundTripTest, KeepsPointsAndNormals) {
 INSTANTIATE_TEST_SUITE_P(AllCloudFormats, CloudRoundTripTest,
                          ::testing::Values("c.ply", "c.off", "c.obj", "c.xyz", "c.pcd", "C.PCD"),
                          [](const ::testing::TestParamInfo<const char*>& info) {
-                           return std::string(info.param[0] == 'C' ? "upper_" : "") + (info.param + 2);
+                           return std::string(info.param[0] == 'C' ? "upper_" : "") +
+                                  (info.param + 2);
                          });
 
 TEST(MeshIoTest, ReadCloudAcceptsMeshFiles) {

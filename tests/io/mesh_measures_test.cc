@@ -1,8 +1,8 @@
 #include "io/mesh_measures.h"
 
-#include <numbers>
-
 #include <gtest/gtest.h>
+
+#include <numbers>
 
 #include "tests/support/test_meshes.h"
 

@@ -10,9 +10,10 @@ namespace {
 
 TEST(PcdTest, ReadsAsciiAndDropsInvalidPoints) {
   test::TempDir dir;
-  const auto file = dir.Write("a.pcd",
-                              "VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 3\nHEIGHT 1\n"
-                              "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n0 0 0\nnan nan nan\n1 2 3\n");
+  const auto file =
+      dir.Write("a.pcd",
+                "VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 3\nHEIGHT 1\n"
+                "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n0 0 0\nnan nan nan\n1 2 3\n");
   const PointCloud cloud = ReadPcd(file);
   ASSERT_EQ(cloud.size(), 2);
   EXPECT_EQ(cloud.points.col(1), Eigen::Vector3d(1, 2, 3));
@@ -21,9 +22,11 @@ TEST(PcdTest, ReadsAsciiAndDropsInvalidPoints) {
 
 TEST(PcdTest, RejectsHeaderClaimingMorePointsThanTheFileHolds) {
   test::TempDir dir;
-  const auto file = dir.Write("huge.pcd",
-                              "VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1000000000\nHEIGHT 1000\n"
-                              "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 1000000000000\nDATA binary\n\x01\x02\x03");
+  const auto file =
+      dir.Write("huge.pcd",
+                "VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH "
+                "1000000000\nHEIGHT 1000\n"
+                "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 1000000000000\nDATA binary\n\x01\x02\x03");
   try {
     ReadPcd(file);
     FAIL();

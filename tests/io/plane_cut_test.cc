@@ -1,8 +1,8 @@
 #include "io/plane_cut.h"
 
-#include <numbers>
-
 #include <gtest/gtest.h>
+
+#include <numbers>
 
 #include "io/mesh_measures.h"
 #include "tests/support/test_meshes.h"
@@ -10,7 +10,9 @@
 namespace vb::io {
 namespace {
 
-Plane MakePlane(Eigen::Vector3d point, Eigen::Vector3d normal) { return Plane{point, normal.normalized()}; }
+Plane MakePlane(Eigen::Vector3d point, Eigen::Vector3d normal) {
+  return Plane{point, normal.normalized()};
+}
 
 TEST(PlaneSectionTest, BoxSectionIsOneClosedLoopOnThePlane) {
   const TriangleMesh box = test::Box();
@@ -39,7 +41,8 @@ TEST(PlaneSectionTest, CountsOneLoopPerPieceAndNoneWhenMissing) {
 
 TEST(MeasurePartsTest, ParallelCutsOfABox) {
   const TriangleMesh box = test::Box(1.0, 2.0, 4.0);
-  const std::vector<Plane> cuts = {MakePlane({0, 0, 3}, {0, 0, 1}), MakePlane({0, 0, 1}, {0, 0, 1})};
+  const std::vector<Plane> cuts = {MakePlane({0, 0, 3}, {0, 0, 1}),
+                                   MakePlane({0, 0, 1}, {0, 0, 1})};
   const std::vector<PartMeasure> parts = MeasureParts(box, cuts);
   ASSERT_EQ(parts.size(), 3u);
   EXPECT_NEAR(parts[0].volume, 2.0, 1e-12);
@@ -53,7 +56,8 @@ TEST(MeasurePartsTest, TiltedCutsThatMeetOutsideTheBodySumToTheWhole) {
   const TriangleMesh sphere = test::Sphere(1.0, 4);
   const double total = SignedVolume(sphere);
   // Neighbouring planes tilted towards each other; their common line lies outside the sphere.
-  const std::vector<Plane> cuts = {MakePlane({0, 0, 0.5}, {0.2, 0, 1}), MakePlane({0, 0, -0.1}, {-0.15, 0.1, 1}),
+  const std::vector<Plane> cuts = {MakePlane({0, 0, 0.5}, {0.2, 0, 1}),
+                                   MakePlane({0, 0, -0.1}, {-0.15, 0.1, 1}),
                                    MakePlane({0, 0, -0.6}, {0.1, -0.2, 1})};
   const std::vector<PartMeasure> parts = MeasureParts(sphere, cuts);
   double sum = 0.0;
@@ -70,7 +74,8 @@ TEST(MeasurePartsTest, TiltedCutsThatMeetOutsideTheBodySumToTheWhole) {
 TEST(MeasurePartsTest, CapOfASphereMatchesTheClosedForm) {
   const TriangleMesh sphere = test::Sphere(1.0, 5);
   const double h = 0.4;  // cap height above z = 0.6
-  const std::vector<PartMeasure> parts = MeasureParts(sphere, std::vector<Plane>{MakePlane({0, 0, 1 - h}, {0, 0, 1})});
+  const std::vector<PartMeasure> parts =
+      MeasureParts(sphere, std::vector<Plane>{MakePlane({0, 0, 1 - h}, {0, 0, 1})});
   const double cap = std::numbers::pi * h * h * (3 - h) / 3;
   EXPECT_NEAR(parts[0].volume, cap, 0.01 * cap);
 }

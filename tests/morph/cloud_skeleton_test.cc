@@ -1,8 +1,8 @@
 #include "morph/cloud_skeleton.h"
 
-#include <random>
-
 #include <gtest/gtest.h>
+
+#include <random>
 
 #include "io/error.h"
 #include "io/mesh_measures.h"
@@ -13,7 +13,8 @@ namespace {
 
 FeatureNodes Features(const Eigen::Matrix3Xd& points) {
   const double size = io::BoundingBoxDiagonal(points);
-  return ExtractFeatureNodes(CloudSkeleton(points), {.min_branch_length = 0.09 * size, .junction_merge_distance = 0.08 * size});
+  return ExtractFeatureNodes(CloudSkeleton(points), {.min_branch_length = 0.09 * size,
+                                                     .junction_merge_distance = 0.08 * size});
 }
 
 // Each terminal lies near the end of one arm, every arm has one.
@@ -41,7 +42,8 @@ TEST(CloudSkeletonTest, CopesWithNormalNoise) {
   const io::TriangleMesh y = test::YShape();
   const Eigen::Matrix3Xd normals = io::VertexNormals(y);
   std::mt19937_64 rng(5);
-  std::normal_distribution<double> noise(0.0, 0.015);  // about 1.3 % of the size, like 16 mm on a carcass
+  std::normal_distribution<double> noise(
+      0.0, 0.015);  // about 1.3 % of the size, like 16 mm on a carcass
   Eigen::Matrix3Xd noisy = y.V;
   for (Eigen::Index i = 0; i < noisy.cols(); ++i) noisy.col(i) += noise(rng) * normals.col(i);
   ExpectArmEnds(Features(noisy));
@@ -58,7 +60,8 @@ TEST(CloudSkeletonTest, BridgesAMissingRegion) {
     if (along < 0.45 || along > 0.55) kept.push_back(static_cast<int>(i));
   }
   Eigen::Matrix3Xd partial(3, static_cast<Eigen::Index>(kept.size()));
-  for (std::size_t k = 0; k < kept.size(); ++k) partial.col(static_cast<Eigen::Index>(k)) = y.V.col(kept[k]);
+  for (std::size_t k = 0; k < kept.size(); ++k)
+    partial.col(static_cast<Eigen::Index>(k)) = y.V.col(kept[k]);
   ExpectArmEnds(Features(partial));
 }
 

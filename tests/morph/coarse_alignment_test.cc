@@ -27,7 +27,8 @@ TemplateModel* CoarseAlignmentTest::model_ = nullptr;
 TEST_F(CoarseAlignmentTest, AlignsPostureOfPlacedAndPosedCarcasses) {
   // Several poses, scales and placements; noise as a camera would add.
   for (std::uint64_t seed : {1000003u, 1000004u, 1000008u}) {
-    const perception::PosedCarcass truth = perception::PoseCarcass(*carcass_, perception::SampleCarcassPose(seed));
+    const perception::PosedCarcass truth =
+        perception::PoseCarcass(*carcass_, perception::SampleCarcassPose(seed));
     const Eigen::Matrix3Xd target = perception::AddNormalNoise(truth.mesh, 0.004, seed).V;
     const CoarseResult r = AlignCoarse(*model_, target);
     ASSERT_TRUE(r.ok) << r.error;

@@ -12,7 +12,9 @@ namespace {
 // Two prongs 0.1 apart joined at the bottom, 1 tall: their tips are close in space but
 // 2 apart along the surface.
 io::TriangleMesh Fork() {
-  return test::CapsuleUnion({{{-0.12, 0, 0}, {-0.12, 0, 1}, 0.07}, {{0.12, 0, 0}, {0.12, 0, 1}, 0.07}, {{-0.12, 0, 0}, {0.12, 0, 0}, 0.07}},
+  return test::CapsuleUnion({{{-0.12, 0, 0}, {-0.12, 0, 1}, 0.07},
+                             {{0.12, 0, 0}, {0.12, 0, 1}, 0.07},
+                             {{-0.12, 0, 0}, {0.12, 0, 0}, 0.07}},
                             0.025);
 }
 
@@ -24,13 +26,16 @@ TEST(DeformationGraphTest, NodesAreSpacedVerticesAndEdgesFollowTheSurface) {
   ASSERT_GT(g.num_nodes(), 20);
   for (int j = 0; j < g.num_nodes(); ++j) {
     EXPECT_EQ(g.nodes.col(j), fork.V.col(g.node_vertex[static_cast<std::size_t>(j)]));
-    EXPECT_EQ(static_cast<int>(g.neighbours[static_cast<std::size_t>(j)].size()), options.graph_neighbours);
-    for (int k = j + 1; k < g.num_nodes(); ++k) EXPECT_GE((g.nodes.col(j) - g.nodes.col(k)).norm(), spacing);
+    EXPECT_EQ(static_cast<int>(g.neighbours[static_cast<std::size_t>(j)].size()),
+              options.graph_neighbours);
+    for (int k = j + 1; k < g.num_nodes(); ++k)
+      EXPECT_GE((g.nodes.col(j) - g.nodes.col(k)).norm(), spacing);
   }
   // Euclidean k-NN would join the prongs near their tips; the geodesic search must not.
   for (const auto& [a, b] : g.edges) {
     const bool upper = g.nodes(2, a) > 0.4 && g.nodes(2, b) > 0.4;
-    EXPECT_FALSE(upper && g.nodes(0, a) * g.nodes(0, b) < 0) << "edge " << a << "-" << b << " jumps between prongs";
+    EXPECT_FALSE(upper && g.nodes(0, a) * g.nodes(0, b) < 0)
+        << "edge " << a << "-" << b << " jumps between prongs";
   }
 }
 

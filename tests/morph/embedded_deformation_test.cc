@@ -1,7 +1,8 @@
 #include "morph/embedded_deformation.h"
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
 
 #include "tests/support/test_meshes.h"
 
@@ -38,10 +39,12 @@ TEST_F(EmbeddedDeformationTest, WithoutDataNothingMoves) {
 }
 
 TEST_F(EmbeddedDeformationTest, RecoversARigidMotion) {
-  const Eigen::Matrix3d R = Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  const Eigen::Matrix3d R =
+      Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
   const Eigen::Vector3d t(0.3, -0.2, 0.5);
   std::vector<PointConstraint> constraints;
-  for (int v = 0; v < mesh_.num_vertices(); v += 25) constraints.push_back(Constraint(v, R * mesh_.V.col(v) + t));
+  for (int v = 0; v < mesh_.num_vertices(); v += 25)
+    constraints.push_back(Constraint(v, R * mesh_.V.col(v) + t));
   DeformationState state = DeformationState::Identity(graph_.num_nodes());
   const SolveSummary summary = SolveEmbeddedDeformation(graph_, constraints, {}, &state);
   ASSERT_TRUE(summary.usable) << summary.message;
@@ -54,8 +57,9 @@ TEST_F(EmbeddedDeformationTest, PullingOnePointMovesItsNeighbourhoodNotTheFarSid
   Eigen::Index top = 0, bottom = 0;
   mesh_.V.row(2).maxCoeff(&top);
   mesh_.V.row(2).minCoeff(&bottom);
-  const std::vector<PointConstraint> constraints = {Constraint(static_cast<int>(top), mesh_.V.col(top) + Eigen::Vector3d(0, 0, 0.3)),
-                                                    Constraint(static_cast<int>(bottom), mesh_.V.col(bottom))};
+  const std::vector<PointConstraint> constraints = {
+      Constraint(static_cast<int>(top), mesh_.V.col(top) + Eigen::Vector3d(0, 0, 0.3)),
+      Constraint(static_cast<int>(bottom), mesh_.V.col(bottom))};
   DeformationState state = DeformationState::Identity(graph_.num_nodes());
   ASSERT_TRUE(SolveEmbeddedDeformation(graph_, constraints, {}, &state).usable);
   const Eigen::Matrix3Xd moved = DeformPoints(graph_, weights_, mesh_.V, state);
@@ -67,7 +71,8 @@ TEST_F(EmbeddedDeformationTest, PointToPlaneOnlyActsAlongTheNormal) {
   // Eq. (14): a target 0.2 away sideways but on the point's tangent plane changes nothing.
   Eigen::Index top = 0;
   mesh_.V.row(2).maxCoeff(&top);
-  PointConstraint c = Constraint(static_cast<int>(top), mesh_.V.col(top) + Eigen::Vector3d(0.2, 0, 0));
+  PointConstraint c =
+      Constraint(static_cast<int>(top), mesh_.V.col(top) + Eigen::Vector3d(0.2, 0, 0));
   c.normal = Eigen::Vector3d::UnitZ();
   DeformationState state = DeformationState::Identity(graph_.num_nodes());
   ASSERT_TRUE(SolveEmbeddedDeformation(graph_, std::vector<PointConstraint>{c}, {}, &state).usable);

@@ -1,9 +1,9 @@
 #include "morph/feature_association.h"
 
-#include <random>
+#include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
-#include <gtest/gtest.h>
+#include <random>
 
 namespace vb::morph {
 namespace {
@@ -13,23 +13,28 @@ FeatureNodes RandomFeatures(int terminals, int junctions, std::mt19937_64* rng) 
   FeatureNodes f;
   f.terminals.resize(3, terminals);
   f.junctions.resize(3, junctions);
-  for (int i = 0; i < terminals; ++i) f.terminals.col(i) = Eigen::Vector3d(u(*rng), u(*rng), u(*rng));
-  for (int i = 0; i < junctions; ++i) f.junctions.col(i) = 0.3 * Eigen::Vector3d(u(*rng), u(*rng), u(*rng));
+  for (int i = 0; i < terminals; ++i)
+    f.terminals.col(i) = Eigen::Vector3d(u(*rng), u(*rng), u(*rng));
+  for (int i = 0; i < junctions; ++i)
+    f.junctions.col(i) = 0.3 * Eigen::Vector3d(u(*rng), u(*rng), u(*rng));
   return f;
 }
 
 // The target: the source moved by a similarity, shuffled, slightly perturbed.
-FeatureNodes Transform(const FeatureNodes& f, const Similarity& s, const std::vector<int>& terminal_order,
+FeatureNodes Transform(const FeatureNodes& f, const Similarity& s,
+                       const std::vector<int>& terminal_order,
                        const std::vector<int>& junction_order, double noise, std::mt19937_64* rng) {
   std::normal_distribution<double> n(0.0, noise);
   FeatureNodes out;
   out.terminals.resize(3, static_cast<Eigen::Index>(terminal_order.size()));
   out.junctions.resize(3, static_cast<Eigen::Index>(junction_order.size()));
   for (std::size_t k = 0; k < terminal_order.size(); ++k) {
-    out.terminals.col(static_cast<Eigen::Index>(k)) = s(f.terminals.col(terminal_order[k])) + Eigen::Vector3d(n(*rng), n(*rng), n(*rng));
+    out.terminals.col(static_cast<Eigen::Index>(k)) =
+        s(f.terminals.col(terminal_order[k])) + Eigen::Vector3d(n(*rng), n(*rng), n(*rng));
   }
   for (std::size_t k = 0; k < junction_order.size(); ++k) {
-    out.junctions.col(static_cast<Eigen::Index>(k)) = s(f.junctions.col(junction_order[k])) + Eigen::Vector3d(n(*rng), n(*rng), n(*rng));
+    out.junctions.col(static_cast<Eigen::Index>(k)) =
+        s(f.junctions.col(junction_order[k])) + Eigen::Vector3d(n(*rng), n(*rng), n(*rng));
   }
   return out;
 }
@@ -39,7 +44,8 @@ class FeatureAssociationTest : public ::testing::TestWithParam<int> {};
 TEST_P(FeatureAssociationTest, RecoversPairingAndSimilarity) {
   std::mt19937_64 rng(static_cast<std::uint64_t>(GetParam()));
   const FeatureNodes from = RandomFeatures(5, 2, &rng);
-  const Similarity truth{1.3, Eigen::Quaterniond::UnitRandom().toRotationMatrix(), Eigen::Vector3d(4, -2, 1)};
+  const Similarity truth{1.3, Eigen::Quaterniond::UnitRandom().toRotationMatrix(),
+                         Eigen::Vector3d(4, -2, 1)};
   const std::vector<int> order = {3, 0, 4, 1, 2};
   const FeatureNodes to = Transform(from, truth, order, {1, 0}, 0.002, &rng);
   const std::vector<Association> result = AssociateFeatureNodes(from, to);
@@ -58,8 +64,10 @@ TEST_P(FeatureAssociationTest, RecoversPairingAndSimilarity) {
 TEST_P(FeatureAssociationTest, LeavesOutASpuriousTargetTerminal) {
   std::mt19937_64 rng(static_cast<std::uint64_t>(GetParam()) + 100);
   const FeatureNodes from = RandomFeatures(5, 2, &rng);
-  const Similarity truth{0.8, Eigen::Quaterniond::UnitRandom().toRotationMatrix(), Eigen::Vector3d(0, 1, 0)};
-  FeatureNodes to = Transform(from, truth, {2, 4, 0, 3}, {0, 1}, 0.002, &rng);  // terminal 1 is missing...
+  const Similarity truth{0.8, Eigen::Quaterniond::UnitRandom().toRotationMatrix(),
+                         Eigen::Vector3d(0, 1, 0)};
+  FeatureNodes to =
+      Transform(from, truth, {2, 4, 0, 3}, {0, 1}, 0.002, &rng);  // terminal 1 is missing...
   to.terminals.conservativeResize(3, 5);
   to.terminals.col(4) = Eigen::Vector3d(9, 9, 9);  // ...and a spur stands far away
   const std::vector<Association> result = AssociateFeatureNodes(from, to);

@@ -41,7 +41,8 @@ TEST(SkeletonGraphTest, PrunesShortSpursRepeatedly) {
   const int fork = Chain(&g, 15, {-0.5, -0.02, 0}, 1);
   Chain(&g, fork, {-0.5, -0.04, 0.01}, 1);
   Chain(&g, fork, {-0.5, -0.04, -0.01}, 1);
-  const FeatureNodes f = ExtractFeatureNodes(g, {.min_branch_length = 0.05, .junction_merge_distance = 0.05});
+  const FeatureNodes f =
+      ExtractFeatureNodes(g, {.min_branch_length = 0.05, .junction_merge_distance = 0.05});
   EXPECT_EQ(f.num_terminals(), 3);
   EXPECT_EQ(f.num_junctions(), 1);
 }
@@ -54,11 +55,13 @@ TEST(SkeletonGraphTest, MergesNearbyJunctionsIntoTheirMean) {
   Chain(&g, 0, {0, 1, 0}, 10);
   Chain(&g, second, {1, 0, 0}, 10);
   Chain(&g, second, {0, -1, 0}, 10);
-  const FeatureNodes merged = ExtractFeatureNodes(g, {.min_branch_length = 0.05, .junction_merge_distance = 0.05});
+  const FeatureNodes merged =
+      ExtractFeatureNodes(g, {.min_branch_length = 0.05, .junction_merge_distance = 0.05});
   EXPECT_EQ(merged.num_terminals(), 4);
   ASSERT_EQ(merged.num_junctions(), 1);
   EXPECT_NEAR(merged.junctions(0, 0), 0.02, 1e-12);
-  const FeatureNodes separate = ExtractFeatureNodes(g, {.min_branch_length = 0.05, .junction_merge_distance = 0.01});
+  const FeatureNodes separate =
+      ExtractFeatureNodes(g, {.min_branch_length = 0.05, .junction_merge_distance = 0.01});
   EXPECT_EQ(separate.num_junctions(), 2);
 }
 
@@ -66,7 +69,8 @@ TEST(SkeletonGraphTest, AChainIsItsTwoEnds) {
   SkeletonGraph g;
   g.nodes = Eigen::Vector3d::Zero();
   Chain(&g, 0, {0.02, 0, 0}, 3);  // shorter than the spur length: still kept, it is all there is
-  const FeatureNodes f = ExtractFeatureNodes(g, {.min_branch_length = 0.05, .junction_merge_distance = 0.05});
+  const FeatureNodes f =
+      ExtractFeatureNodes(g, {.min_branch_length = 0.05, .junction_merge_distance = 0.05});
   EXPECT_EQ(f.num_terminals(), 2);
   EXPECT_EQ(f.num_junctions(), 0);
 }

@@ -9,7 +9,8 @@
 namespace vb::morph {
 namespace {
 
-void ExpectRejected(const io::TriangleMesh& mesh, const char* fragment, const TemplateModelOptions& options = {}) {
+void ExpectRejected(const io::TriangleMesh& mesh, const char* fragment,
+                    const TemplateModelOptions& options = {}) {
   try {
     BuildTemplateModel(mesh, options);
     ADD_FAILURE() << "no error";
@@ -47,7 +48,8 @@ TEST(TemplateModelTest, NormalisesAndPrecomputesEverything) {
   EXPECT_GT(m.graph.num_nodes(), 20);
   EXPECT_EQ(m.vertex_weights.nodes.cols(), y.num_vertices());
   EXPECT_EQ(m.terminal_weights.nodes.cols(), 3);
-  for (Eigen::Index t = 0; t < 3; ++t) EXPECT_NEAR(m.terminal_weights.weights.col(t).sum(), 1.0, 1e-12);
+  for (Eigen::Index t = 0; t < 3; ++t)
+    EXPECT_NEAR(m.terminal_weights.weights.col(t).sum(), 1.0, 1e-12);
   EXPECT_TRUE(m.mesh.has_normals());
 }
 

@@ -53,8 +53,11 @@ TEST_F(CarcassTemplateTest, HangsFromTheHindLegs) {
   Eigen::Index top = 0, bottom = 0;
   mesh.V.row(2).maxCoeff(&top);
   mesh.V.row(2).minCoeff(&bottom);
-  EXPECT_GT(dut().weights(kShankLeft, top) + dut().weights(kShankRight, top), 0.99) << "the highest point is a hock";
-  EXPECT_GT(dut().weights(kForearmLeft, bottom) + dut().weights(kForearmRight, bottom) + dut().weights(kNeck, bottom), 0.99);
+  EXPECT_GT(dut().weights(kShankLeft, top) + dut().weights(kShankRight, top), 0.99)
+      << "the highest point is a hock";
+  EXPECT_GT(dut().weights(kForearmLeft, bottom) + dut().weights(kForearmRight, bottom) +
+                dut().weights(kNeck, bottom),
+            0.99);
 }
 
 TEST_F(CarcassTemplateTest, SkinWeightsArePartitionsOfUnity) {
@@ -101,7 +104,8 @@ TEST_F(CarcassTemplateTest, RestPoseReproducesTheTemplate) {
   }
 }
 
-class CarcassTargetTest : public CarcassTemplateTest, public ::testing::WithParamInterface<std::uint64_t> {};
+class CarcassTargetTest : public CarcassTemplateTest,
+                          public ::testing::WithParamInterface<std::uint64_t> {};
 
 TEST_P(CarcassTargetTest, KeepsConnectivityAndGroundTruthIsConsistent) {
   const CarcassPose pose = SampleCarcassPose(GetParam());
@@ -110,7 +114,8 @@ TEST_P(CarcassTargetTest, KeepsConnectivityAndGroundTruthIsConsistent) {
   const PosedCarcass target = PoseCarcass(dut(), pose);
   ASSERT_EQ(target.mesh.F, dut().mesh.F);
   const io::TopologyReport topology = io::AnalyzeTopology(target.mesh);
-  EXPECT_TRUE(topology.is_closed_manifold() && topology.is_consistently_oriented()) << topology.Describe();
+  EXPECT_TRUE(topology.is_closed_manifold() && topology.is_consistently_oriented())
+      << topology.Describe();
   const double volume = io::SignedVolume(target.mesh);
   EXPECT_GT(volume, 0.0);
 
@@ -125,7 +130,8 @@ TEST_P(CarcassTargetTest, KeepsConnectivityAndGroundTruthIsConsistent) {
     EXPECT_TRUE(loops[0].closed);
     EXPECT_GT(plane.normal.dot(target.up_world), 0.8) << "a cut stays roughly across the spine";
     if (c > 0) {
-      EXPECT_LT(target.cut_planes[c - 1].SignedDistance(plane.point), 0.0) << "cuts keep their order";
+      EXPECT_LT(target.cut_planes[c - 1].SignedDistance(plane.point), 0.0)
+          << "cuts keep their order";
     }
   }
   const auto parts = io::MeasureParts(target.mesh, target.cut_planes);
@@ -140,7 +146,8 @@ TEST_P(CarcassTargetTest, UprightPlacementHangsAlongPlusZ) {
   EXPECT_GT(target.up_world.z(), 0.95);
 }
 
-INSTANTIATE_TEST_SUITE_P(Seeds, CarcassTargetTest, ::testing::Values(1u, 2u, 3u, 5u, 8u, 13u, 21u, 34u, 1000003u));
+INSTANTIATE_TEST_SUITE_P(Seeds, CarcassTargetTest,
+                         ::testing::Values(1u, 2u, 3u, 5u, 8u, 13u, 21u, 34u, 1000003u));
 
 TEST_F(CarcassTemplateTest, PosesAreDeterministicPerSeedAndDifferAcrossSeeds) {
   const PosedCarcass a = PoseCarcass(dut(), SampleCarcassPose(42));
@@ -176,7 +183,8 @@ TEST_F(CarcassTemplateTest, CloudsSampleTheSurfaceAndMissRegionsOnRequest) {
   EXPECT_FALSE(full.has_normals());
   // Every sample is near the surface: within an edge length plus 6 sigma of a vertex.
   for (int i = 0; i < full.size(); i += 7) {
-    const double nearest = (target.mesh.V.colwise() - full.points.col(i)).colwise().norm().minCoeff();
+    const double nearest =
+        (target.mesh.V.colwise() - full.points.col(i)).colwise().norm().minCoeff();
     EXPECT_LT(nearest, 0.03 + 6 * options.sigma_m);
   }
   options.missing_regions = true;

@@ -1,8 +1,8 @@
 #include "perception/marching_tetrahedra.h"
 
-#include <numbers>
-
 #include <gtest/gtest.h>
+
+#include <numbers>
 
 #include "io/mesh_measures.h"
 #include "io/mesh_topology.h"
@@ -20,7 +20,8 @@ class MarchingTetrahedraTest : public ::testing::TestWithParam<double> {};
 TEST_P(MarchingTetrahedraTest, SphereIsClosedOrientedAndHasTheRightVolume) {
   const double h = GetParam();
   const auto sphere = [](const Eigen::Vector3d& p) { return p.norm() - 1.0; };
-  const io::TriangleMesh mesh = MarchingTetrahedra(sphere, Eigen::Vector3d::Constant(-1.5), Eigen::Vector3d::Constant(1.5), h);
+  const io::TriangleMesh mesh = MarchingTetrahedra(sphere, Eigen::Vector3d::Constant(-1.5),
+                                                   Eigen::Vector3d::Constant(1.5), h);
   const io::TopologyReport r = io::AnalyzeTopology(mesh);
   EXPECT_TRUE(r.is_closed_manifold()) << r.Describe();
   EXPECT_TRUE(r.is_consistently_oriented()) << r.Describe();
@@ -41,7 +42,8 @@ TEST(MarchingTetrahedraTopologyTest, TorusHasGenusOneAndSeparateBlobsStaySeparat
   EXPECT_EQ(r.euler_characteristic(), 0);
 
   const auto blobs = [](const Eigen::Vector3d& p) {
-    return std::min((p - Eigen::Vector3d(-1, 0, 0)).norm(), (p - Eigen::Vector3d(1, 0, 0)).norm()) - 0.6;
+    return std::min((p - Eigen::Vector3d(-1, 0, 0)).norm(), (p - Eigen::Vector3d(1, 0, 0)).norm()) -
+           0.6;
   };
   mesh = MarchingTetrahedra(blobs, {-2, -1, -1}, {2, 1, 1}, 0.1);
   r = io::AnalyzeTopology(mesh);

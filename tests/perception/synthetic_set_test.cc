@@ -1,9 +1,9 @@
 #include "perception/synthetic_set.h"
 
+#include <gtest/gtest.h>
+
 #include <fstream>
 #include <iterator>
-
-#include <gtest/gtest.h>
 
 #include "io/annotations.h"
 #include "io/error.h"
@@ -33,7 +33,8 @@ TEST(SyntheticSetTest, WritesALoadableSetWithGroundTruth) {
   EXPECT_NE(FormatSummary(summary).find("target_001"), std::string::npos);
 
   const io::TriangleMesh tmpl = io::ReadMesh(options.out_dir / "template.ply");
-  const io::Annotations annotations = io::LoadAnnotations(options.out_dir / "template_annotations.yaml");
+  const io::Annotations annotations =
+      io::LoadAnnotations(options.out_dir / "template_annotations.yaml");
   EXPECT_NO_THROW(io::CheckAnnotationsFit(annotations, tmpl, "template.ply"));
   for (const char* name : {"target_000", "target_001"}) {
     const std::string base = name;
@@ -64,7 +65,8 @@ TEST(SyntheticSetTest, SameSeedSameBytesOtherSeedOtherTargets) {
   options.out_dir = dir / "c";
   options.seed = 2;
   WriteSyntheticSet(options);
-  for (const char* file : {"template.ply", "template_annotations.yaml", "target_000.ply", "target_000_truth.yaml"}) {
+  for (const char* file :
+       {"template.ply", "template_annotations.yaml", "target_000.ply", "target_000_truth.yaml"}) {
     EXPECT_EQ(Bytes(dir / "a" / file), Bytes(dir / "b" / file)) << file;
   }
   EXPECT_EQ(Bytes(dir / "a" / "template.ply"), Bytes(dir / "c" / "template.ply"));

@@ -31,7 +31,8 @@ io::TriangleMesh YShape(double h) {
   std::vector<Capsule> arms;
   for (int k = 0; k < 3; ++k) {
     const double angle = 2.0 * M_PI * k / 3.0 + 0.3;
-    arms.push_back({Eigen::Vector3d::Zero(), Eigen::Vector3d(std::cos(angle), std::sin(angle), 0.1 * k), 0.12});
+    arms.push_back({Eigen::Vector3d::Zero(),
+                    Eigen::Vector3d(std::cos(angle), std::sin(angle), 0.1 * k), 0.12});
   }
   return CapsuleUnion(arms, h);
 }

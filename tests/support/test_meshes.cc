@@ -10,10 +10,11 @@ namespace vb::test {
 io::TriangleMesh Box(double sx, double sy, double sz) {
   io::TriangleMesh m;
   m.V.resize(3, 8);
-  for (int i = 0; i < 8; ++i) m.V.col(i) = Eigen::Vector3d((i & 1) * sx, ((i >> 1) & 1) * sy, ((i >> 2) & 1) * sz);
+  for (int i = 0; i < 8; ++i)
+    m.V.col(i) = Eigen::Vector3d((i & 1) * sx, ((i >> 1) & 1) * sy, ((i >> 2) & 1) * sz);
   m.F.resize(3, 12);
   m.F << 0, 0, 4, 4, 0, 0, 2, 2, 0, 0, 1, 1,  //
-      2, 3, 5, 7, 1, 5, 6, 7, 4, 6, 3, 7,      //
+      2, 3, 5, 7, 1, 5, 6, 7, 4, 6, 3, 7,     //
       3, 1, 7, 6, 5, 4, 7, 3, 6, 2, 7, 5;
   return m;
 }
@@ -22,18 +23,20 @@ io::TriangleMesh Tetrahedron() {
   io::TriangleMesh m;
   m.V.resize(3, 4);
   m.V << 1, -1, -1, 1,  //
-      1, -1, 1, -1,      //
+      1, -1, 1, -1,     //
       1, 1, -1, -1;
   m.F.resize(3, 4);
   m.F << 0, 0, 0, 1,  //
-      2, 1, 3, 2,      //
+      2, 1, 3, 2,     //
       1, 3, 2, 3;
   return m;
 }
 
 io::TriangleMesh Sphere(double r, int subdivisions) {
-  std::vector<Eigen::Vector3d> v = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
-  std::vector<std::array<int, 3>> f = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4}, {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};
+  std::vector<Eigen::Vector3d> v = {{1, 0, 0},  {-1, 0, 0}, {0, 1, 0},
+                                    {0, -1, 0}, {0, 0, 1},  {0, 0, -1}};
+  std::vector<std::array<int, 3>> f = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4},
+                                       {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};
   for (int s = 0; s < subdivisions; ++s) {
     std::map<std::pair<int, int>, int> mid;
     auto midpoint = [&](int a, int b) {
@@ -58,7 +61,8 @@ io::TriangleMesh Sphere(double r, int subdivisions) {
   for (std::size_t i = 0; i < v.size(); ++i) m.V.col(static_cast<Eigen::Index>(i)) = r * v[i];
   m.F.resize(3, static_cast<Eigen::Index>(f.size()));
   for (std::size_t i = 0; i < f.size(); ++i) {
-    for (int k = 0; k < 3; ++k) m.F(k, static_cast<Eigen::Index>(i)) = f[i][static_cast<std::size_t>(k)];
+    for (int k = 0; k < 3; ++k)
+      m.F(k, static_cast<Eigen::Index>(i)) = f[i][static_cast<std::size_t>(k)];
   }
   return m;
 }
