@@ -132,12 +132,13 @@ io::TriangleMesh Bend(const io::TriangleMesh& mesh, std::uint64_t seed) {
 void Summarise(const std::vector<Row>& rows, const std::string& shape, const std::string& input,
                double sigma) {
   std::vector<double> rigid, coarse_mean, coarse_max, total, skeleton, association, deformation;
-  int ok = 0, correct = 0, n = 0;
+  int ok = 0, correct = 0, placed = 0, n = 0;
   for (const Row& r : rows) {
     if (r.shape != shape || r.input != input || r.sigma_mm != sigma) continue;
     ++n;
     ok += r.ok;
     correct += r.association_correct;
+    placed += r.ok && r.rigid_mean < 0.05;
     if (!r.ok) continue;
     rigid.push_back(r.rigid_mean);
     coarse_mean.push_back(r.coarse_mean);
@@ -154,11 +155,12 @@ void Summarise(const std::vector<Row>& rows, const std::string& shape, const std
     return v.empty() ? std::nan("") : s / static_cast<double>(v.size());
   };
   std::printf(
-      "| %-10s | %-9s | %5.0f | %3d | %5.1f %% | %6.1f %% | %7.2f %% | %7.2f %% | %7.2f %% | %6.3f "
-      "| %6.3f | %6.3f | %6.3f |\n",
-      shape.c_str(), input.c_str(), sigma, n, 100.0 * ok / n, 100.0 * correct / n,
-      100 * mean(rigid), 100 * mean(coarse_mean), 100 * mean(coarse_max), Median(skeleton),
-      Median(association), Median(deformation), Median(total));
+      "| %-10s | %-9s | %5.0f | %3d | %5.1f %% | %6.1f %% | %6.1f %% | %7.2f %% | %7.2f %% | %7.2f "
+      "%% | "
+      "%6.3f | %6.3f | %6.3f | %6.3f |\n",
+      shape.c_str(), input.c_str(), sigma, n, 100.0 * ok / n, 100.0 * placed / n,
+      100.0 * correct / n, 100 * mean(rigid), 100 * mean(coarse_mean), 100 * mean(coarse_max),
+      Median(skeleton), Median(association), Median(deformation), Median(total));
 }
 
 }  // namespace
@@ -246,11 +248,11 @@ int RunBenchCommand(const BenchOptions& options) {
   }
 
   std::printf(
-      "\n| shape      | input     | sigma |   n |   ok    | assoc ok | rigid mean | coarse mean | "
-      "coarse max | skel s | assoc s | ED s   | total s |\n");
+      "\n| shape      | input     | sigma |   n |   ok    | placed  | assoc ok | rigid mean | "
+      "coarse mean | coarse max | skel s | assoc s | ED s   | total s |\n");
   std::printf(
-      "|------------|-----------|-------|-----|---------|----------|------------|-------------|----"
-      "--------|--------|---------|--------|---------|\n");
+      "|------------|-----------|-------|-----|---------|---------|----------|------------|------"
+      "-------|------------|--------|---------|--------|---------|\n");
   for (const auto& [shape, input, sigma] : groups) Summarise(rows, shape, input, sigma);
   std::printf(
       "errors are per-vertex distances to the ground truth as %% of the target's bounding-box "
