@@ -4,7 +4,6 @@
 #include <array>
 #include <boost/iterator/counting_iterator.hpp>
 #include <boost/pending/disjoint_sets.hpp>
-#include <numeric>
 #include <vector>
 
 #include "io/error.h"

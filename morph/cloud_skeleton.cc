@@ -8,7 +8,6 @@
 #include <boost/pending/disjoint_sets.hpp>
 #include <cmath>
 #include <map>
-#include <numeric>
 #include <unordered_map>
 
 #include "io/error.h"

@@ -3,9 +3,7 @@
 #include <algorithm>
 #include <boost/pending/disjoint_sets.hpp>
 #include <cmath>
-#include <functional>
 #include <limits>
-#include <numeric>
 #include <queue>
 
 namespace vb::morph {

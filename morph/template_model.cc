@@ -47,8 +47,6 @@ TemplateModel BuildTemplateModel(const io::TriangleMesh& mesh,
   m.vertex_weights = VertexWeights(normalised, m.graph, options.graph);
   m.terminal_weights = PointWeights(m.features.terminals, m.features.terminal_support, m.graph,
                                     m.vertex_weights, options.graph.vertex_neighbours);
-  m.junction_weights = PointWeights(m.features.junctions, m.features.junction_support, m.graph,
-                                    m.vertex_weights, options.graph.vertex_neighbours);
   m.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return m;
 }

@@ -41,7 +41,6 @@ struct TemplateModel {
   DeformationGraph graph;  ///< on the normalised mesh
   NodeWeights vertex_weights;
   NodeWeights terminal_weights;
-  NodeWeights junction_weights;
   double seconds = 0.0;  ///< time to build
 
   Eigen::Vector3d Normalise(const Eigen::Vector3d& x) const { return (x - centre) / size; }
