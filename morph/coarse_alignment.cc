@@ -127,15 +127,16 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
                                             to_template(result.target_features.terminals.col(j)),
                                             model.terminal_weights, i));
   }
-  DeformationState state = DeformationState::Identity(model.graph.num_nodes());
+  result.state = DeformationState::Identity(model.graph.num_nodes());
   result.deformation =
-      SolveEmbeddedDeformation(model.graph, constraints, options.deformation, &state);
+      SolveEmbeddedDeformation(model.graph, constraints, options.deformation, &result.state);
   result.deformation_seconds = Since(phase);
   if (!result.deformation.usable) {
     result.error = "embedded deformation failed: " + result.deformation.message;
     return result;
   }
-  const Eigen::Matrix3Xd posed = DeformPoints(model.graph, model.vertex_weights, model.V, state);
+  const Eigen::Matrix3Xd posed =
+      DeformPoints(model.graph, model.vertex_weights, model.V, result.state);
 
   // Back to the target's frame.
   result.template_to_target = Similarity{to_target.scale * model.size, to_target.R, to_target.t};

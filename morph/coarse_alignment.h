@@ -34,6 +34,9 @@ struct CoarseResult {
   Association association;
   FeatureNodes target_features;  ///< in the target's frame
   SolveSummary deformation;
+  /// The node transforms found, in the template's normalised frame; the dense stage goes on
+  /// from them.
+  DeformationState state;
   double skeleton_seconds = 0.0;
   double association_seconds = 0.0;
   double deformation_seconds = 0.0;

@@ -2,6 +2,7 @@
 
 #include <ceres/ceres.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 
@@ -64,33 +65,68 @@ struct RigidityCost {
 };
 
 // Eqs. (5) and (14): the deformed point (eq. 9) against its target, or its target's plane.
-struct DataCost {
+// The residual is linear in the node transforms, so its Jacobian is written out rather than
+// left to DynamicAutoDiffCostFunction (whose evaluation cost grows with the node count).
+class DataCost final : public ceres::CostFunction {
+ public:
   DataCost(const PointConstraint& c, const DeformationGraph& graph, double weight)
-      : c(c), graph(graph), w(std::sqrt(weight)) {}
-  template <typename T>
-  bool operator()(T const* const* blocks, T* r) const {
-    T p[3] = {T(0), T(0), T(0)};
-    for (std::size_t k = 0; k < c.nodes.size(); ++k) {
-      const T* R = blocks[2 * k];
-      const T* t = blocks[2 * k + 1];
-      const Eigen::Vector3d g = graph.nodes.col(c.nodes[k]);
-      const Eigen::Vector3d d = c.rest - g;
-      for (int a = 0; a < 3; ++a) {
-        p[a] += c.weights[k] *
-                (R[3 * a] * d.x() + R[3 * a + 1] * d.y() + R[3 * a + 2] * d.z() + g[a] + t[a]);
-      }
+      : c_(c), w_(std::sqrt(weight)), plane_(!c.normal.isZero()) {
+    for (int node : c.nodes) {
+      mutable_parameter_block_sizes()->push_back(9);
+      mutable_parameter_block_sizes()->push_back(3);
+      offsets_.push_back(c.rest - graph.nodes.col(node));
+      anchors_.push_back(graph.nodes.col(node));
     }
-    if (c.normal.isZero()) {
-      for (int a = 0; a < 3; ++a) r[a] = w * (p[a] - c.target[a]);
+    set_num_residuals(plane_ ? 1 : 3);
+  }
+
+  bool Evaluate(double const* const* blocks, double* residuals, double** jacobians) const override {
+    Eigen::Vector3d p = Eigen::Vector3d::Zero();
+    for (std::size_t k = 0; k < c_.nodes.size(); ++k) {
+      const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> R(blocks[2 * k]);
+      const Eigen::Map<const Eigen::Vector3d> t(blocks[2 * k + 1]);
+      p += c_.weights[k] * (R * offsets_[k] + anchors_[k] + t);
+    }
+    if (plane_) {
+      residuals[0] = w_ * c_.normal.dot(p - c_.target);
     } else {
-      r[0] = w * (c.normal.x() * (p[0] - c.target.x()) + c.normal.y() * (p[1] - c.target.y()) +
-                  c.normal.z() * (p[2] - c.target.z()));
+      Eigen::Map<Eigen::Vector3d> r(residuals);
+      r = w_ * (p - c_.target);
+    }
+    if (jacobians == nullptr) return true;
+    for (std::size_t k = 0; k < c_.nodes.size(); ++k) {
+      const double s = w_ * c_.weights[k];
+      double* dR = jacobians[2 * k];
+      double* dt = jacobians[2 * k + 1];
+      if (plane_) {
+        // r = w n . (sum_k w_k (R_k d_k + g_k + t_k) - target)
+        if (dR != nullptr)
+          for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b) dR[3 * a + b] = s * c_.normal[a] * offsets_[k][b];
+        if (dt != nullptr)
+          for (int a = 0; a < 3; ++a) dt[a] = s * c_.normal[a];
+      } else {
+        // Row a of the residual depends on row a of R_k and on t_k[a] only.
+        if (dR != nullptr) {
+          std::fill(dR, dR + 27, 0.0);
+          for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b) dR[9 * a + 3 * a + b] = s * offsets_[k][b];
+        }
+        if (dt != nullptr) {
+          std::fill(dt, dt + 9, 0.0);
+          for (int a = 0; a < 3; ++a) dt[3 * a + a] = s;
+        }
+      }
     }
     return true;
   }
-  const PointConstraint& c;
-  const DeformationGraph& graph;
-  double w;
+
+ private:
+  const PointConstraint& c_;
+  double w_;
+  bool plane_;
+  std::vector<Eigen::Vector3d> offsets_;  // rest - g_k
+  std::vector<Eigen::Vector3d> anchors_;  // g_k
 };
 
 }  // namespace
@@ -141,17 +177,12 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
         nullptr, R(j), R(k));
   }
   for (const PointConstraint& c : constraints) {
-    auto* cost =
-        new ceres::DynamicAutoDiffCostFunction<DataCost, 4>(new DataCost(c, graph, options.w_data));
     std::vector<double*> blocks;
     for (int node : c.nodes) {
-      cost->AddParameterBlock(9);
-      cost->AddParameterBlock(3);
       blocks.push_back(R(node));
       blocks.push_back(t(node));
     }
-    cost->SetNumResiduals(c.normal.isZero() ? 3 : 1);
-    problem.AddResidualBlock(cost, nullptr, blocks);
+    problem.AddResidualBlock(new DataCost(c, graph, options.w_data), nullptr, blocks);
   }
 
   ceres::Solver::Options solver_options;
@@ -162,6 +193,10 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
   solver_options.num_threads = options.num_threads;
   solver_options.function_tolerance = 1e-7;
   solver_options.logging_type = ceres::SILENT;
+  if (options.linear_solver == EmbeddedDeformationOptions::LinearSolver::kConjugateGradients) {
+    solver_options.linear_solver_type = ceres::CGNR;
+    solver_options.preconditioner_type = ceres::JACOBI;
+  }
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, &problem, &summary);
 

@@ -38,6 +38,12 @@ struct EmbeddedDeformationOptions {
   double w_reg = 10.0;
   double w_rig = 10.0;
   int max_iterations = 50;
+  /// How each Levenberg-Marquardt step is solved. Sparse normal Cholesky suits the coarse
+  /// stage's few constraints; with thousands of dense point-to-plane terms, each coupling
+  /// four nodes, the normal matrix fills in and conjugate gradients (CGNR, Jacobi
+  /// preconditioner) measured 4-6 times faster for the same cost (README).
+  enum class LinearSolver { kSparseNormalCholesky, kConjugateGradients };
+  LinearSolver linear_solver = LinearSolver::kSparseNormalCholesky;
   int num_threads = 2;
 };
 

@@ -12,10 +12,26 @@ nlohmann::json Points(const Eigen::Matrix3Xd& P) {
   return out;
 }
 
+nlohmann::json Solver(const SolveSummary& s) {
+  return {{"iterations", s.iterations},
+          {"initial_cost", s.initial_cost},
+          {"final_cost", s.final_cost},
+          {"seconds", s.seconds},
+          {"message", s.message}};
+}
+
+void Write(const std::filesystem::path& path, const nlohmann::json& j) {
+  std::ofstream out(path);
+  out << j.dump(2) << '\n';
+  if (!out) throw std::runtime_error(path.string() + ": cannot write report");
+}
+
+nlohmann::json Point(const Eigen::Vector3d& p) { return {p.x(), p.y(), p.z()}; }
+
 }  // namespace
 
 void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& model,
-                      const CoarseResult& r) {
+                      const CoarseResult& r, const DenseResult* dense) {
   nlohmann::json j;
   j["ok"] = r.ok;
   j["error"] = r.error;
@@ -50,9 +66,55 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
                       {"initial_cost", r.deformation.initial_cost},
                       {"final_cost", r.deformation.final_cost},
                       {"message", r.deformation.message}};
-  std::ofstream out(path);
-  out << j.dump(2) << '\n';
-  if (!out) throw std::runtime_error(path.string() + ": cannot write report");
+  if (dense != nullptr) {
+    nlohmann::json rounds = nlohmann::json::array();
+    for (const DenseRound& round : dense->rounds) {
+      rounds.push_back({{"associated", round.associated},
+                        {"kept_after_filter", round.kept},
+                        {"mean_plane_distance_rel", round.mean_plane_distance},
+                        {"association_s", round.association_seconds},
+                        {"filter_s", round.filter_seconds},
+                        {"solver", Solver(round.deformation)}});
+    }
+    j["dense"] = {{"ok", dense->ok},
+                  {"error", dense->error},
+                  {"normals_s", dense->normals_seconds},
+                  {"total_s", dense->total_seconds},
+                  {"rounds", rounds}};
+    j["timings_s"]["dense_total"] = dense->total_seconds;
+  }
+  Write(path, j);
+}
+
+void WriteCutsReport(const std::filesystem::path& path, const io::Annotations& annotations,
+                     const std::vector<TransferredCut>& cuts,
+                     const std::vector<io::PartMeasure>& parts) {
+  nlohmann::json j;
+  j["format"] = "vbutcher-cuts";
+  j["version"] = 1;
+  j["template"] = annotations.template_name;
+  nlohmann::json out_cuts = nlohmann::json::array();
+  for (const TransferredCut& c : cuts) {
+    nlohmann::json line = nlohmann::json::array();
+    for (const Eigen::Vector3d& p : c.line) line.push_back(Point(p));
+    out_cuts.push_back(
+        {{"name", c.name},
+         {"plane", {{"point", Point(c.plane.point)}, {"normal", Point(c.plane.normal)}}},
+         {"fit_rms", c.fit_rms},
+         {"coverage", c.coverage},
+         {"gap", c.gap},
+         {"confidence", c.confidence},
+         {"line", line}});
+  }
+  j["cuts"] = out_cuts;
+  nlohmann::json out_parts = nlohmann::json::array();
+  for (std::size_t k = 0; k < parts.size(); ++k) {
+    out_parts.push_back({{"name", k < annotations.parts.size() ? annotations.parts[k] : ""},
+                         {"volume", parts[k].volume},
+                         {"area", parts[k].area}});
+  }
+  j["parts"] = out_parts;
+  Write(path, j);
 }
 
 }  // namespace vb::morph

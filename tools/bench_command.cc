@@ -102,33 +102,6 @@ Row Evaluate(const morph::TemplateModel& model, const Eigen::Matrix3Xd& input,
   return row;
 }
 
-// A simple non-rigid re-posing for shapes without a skeleton: bend about an axis across the
-// longest extent, twist about it, then a random similarity.
-io::TriangleMesh Bend(const io::TriangleMesh& mesh, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  const Eigen::Vector3d lo = mesh.V.rowwise().minCoeff(), hi = mesh.V.rowwise().maxCoeff();
-  Eigen::Index axis = 0;
-  (hi - lo).maxCoeff(&axis);
-  const Eigen::Vector3d centre = 0.5 * (lo + hi);
-  const double half = 0.5 * (hi - lo)[axis];
-  const Eigen::Vector3d along = Eigen::Vector3d::Unit(axis);
-  const Eigen::Vector3d across = Eigen::Vector3d::Unit((axis + 1) % 3);
-  const double bend = 0.35 * u(rng), twist = 0.35 * u(rng);  // radians over half the length
-  io::TriangleMesh out = mesh;
-  const Eigen::Quaterniond q = Eigen::Quaterniond::UnitRandom();
-  const double scale = 1.0 + 0.2 * u(rng);
-  for (int i = 0; i < mesh.num_vertices(); ++i) {
-    const Eigen::Vector3d p = mesh.V.col(i) - centre;
-    const double s = std::clamp(p.dot(along) / half, -1.0, 1.0);
-    const Eigen::Vector3d bent = Eigen::AngleAxisd(bend * s * std::abs(s), across) *
-                                 (Eigen::AngleAxisd(twist * s, along) * p);
-    out.V.col(i) = scale * (q * bent);
-  }
-  out.N = io::VertexNormals(out);
-  return out;
-}
-
 void Summarise(const std::vector<Row>& rows, const std::string& shape, const std::string& input,
                double sigma) {
   std::vector<double> rigid, coarse_mean, coarse_max, total, skeleton, association, deformation;
@@ -165,10 +138,40 @@ void Summarise(const std::vector<Row>& rows, const std::string& shape, const std
 
 }  // namespace
 
-int RunBenchCommand(const BenchOptions& options) {
-  if (options.stage != "coarse")
-    throw InputError("bench: stage '" + options.stage + "' is not built yet; use 'coarse'");
-  if (options.pairs < 1) throw InputError("bench: --pairs must be positive");
+// A simple non-rigid re-posing for shapes without a skeleton: bend about an axis across the
+// longest extent, twist about it, then a random similarity.
+io::TriangleMesh BendShape(const io::TriangleMesh& mesh, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const Eigen::Vector3d lo = mesh.V.rowwise().minCoeff(), hi = mesh.V.rowwise().maxCoeff();
+  Eigen::Index axis = 0;
+  (hi - lo).maxCoeff(&axis);
+  const Eigen::Vector3d centre = 0.5 * (lo + hi);
+  const double half = 0.5 * (hi - lo)[axis];
+  const Eigen::Vector3d along = Eigen::Vector3d::Unit(axis);
+  const Eigen::Vector3d across = Eigen::Vector3d::Unit((axis + 1) % 3);
+  const double bend = 0.35 * u(rng), twist = 0.35 * u(rng);  // radians over half the length
+  io::TriangleMesh out = mesh;
+  const Eigen::Quaterniond q = Eigen::Quaterniond::UnitRandom();
+  const double scale = 1.0 + 0.2 * u(rng);
+  for (int i = 0; i < mesh.num_vertices(); ++i) {
+    const Eigen::Vector3d p = mesh.V.col(i) - centre;
+    const double s = std::clamp(p.dot(along) / half, -1.0, 1.0);
+    const Eigen::Vector3d bent = Eigen::AngleAxisd(bend * s * std::abs(s), across) *
+                                 (Eigen::AngleAxisd(twist * s, along) * p);
+    out.V.col(i) = scale * (q * bent);
+  }
+  out.N = io::VertexNormals(out);
+  return out;
+}
+
+int RunBenchCommand(const BenchOptions& given) {
+  if (given.stage != "coarse" && given.stage != "full")
+    throw InputError("bench: stage '" + given.stage + "' is neither 'coarse' nor 'full'");
+  if (given.pairs < 1) throw InputError("bench: --pairs must be positive");
+  BenchOptions options = given;
+  if (options.csv.empty()) options.csv = "bench_" + options.stage + ".csv";
+  if (options.stage == "full") return RunFullBench(options);
   std::vector<Row> rows;
   std::vector<std::tuple<std::string, std::string, double>> groups;
 
@@ -233,7 +236,7 @@ int RunBenchCommand(const BenchOptions& options) {
       groups.emplace_back(name, "mesh", sigma);
       for (int i = 0; i < options.shape_pairs; ++i) {
         const io::TriangleMesh truth =
-            Bend(model.mesh, options.seed * 7919 + static_cast<std::uint64_t>(i));
+            BendShape(model.mesh, options.seed * 7919 + static_cast<std::uint64_t>(i));
         // Noise relative to size as for a 1.2 m carcass, so shapes in other units compare.
         const Eigen::Matrix3Xd points =
             perception::AddNormalNoise(truth, sigma / 1000.0 * size / 1.2, 31 + i).V;

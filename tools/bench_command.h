@@ -1,8 +1,11 @@
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <string>
 #include <vector>
+
+#include "io/triangle_mesh.h"
 
 namespace vb::tools {
 
@@ -15,11 +18,21 @@ struct BenchOptions {
   std::vector<std::filesystem::path> shapes;  ///< extra closed meshes, re-posed by bends
   int shape_pairs = 5;
   std::string template_features = "levelset";  ///< levelset | mcf
-  std::filesystem::path csv = "bench_coarse.csv";
+  std::filesystem::path csv;                   ///< default bench_<stage>.csv
 };
 
 /// `vbutcher bench coarse`: morphs synthetic targets with known correspondence and prints a
 /// table (medians and means per noise level) and writes one CSV row per morph.
 int RunBenchCommand(const BenchOptions& options);
+
+/// `vbutcher bench full`: the whole morph and cut transfer on synthetic lamb targets, the
+/// paper's protocol (sigma levels, average max error, part volumes and areas) plus cut-plane
+/// errors; prints a markdown table, writes it beside the CSV (.md), and one example morph
+/// with its cut lines (_example.ply, _example_cuts.csv) for the plot script.
+int RunFullBench(const BenchOptions& options);
+
+/// A non-rigid re-posing for shapes without a skeleton: a bend about an axis across the
+/// longest extent, a twist about it, then a random similarity. Deterministic in @p seed.
+io::TriangleMesh BendShape(const io::TriangleMesh& mesh, std::uint64_t seed);
 
 }  // namespace vb::tools

@@ -51,11 +51,16 @@ int main(int argc, char** argv) {
   morph_cmd->add_option("--stage", morph.stage, "coarse | full")->capture_default_str();
   morph_cmd->add_option("--report", morph.report_path,
                         "JSON report of timings, features, association, solver");
+  morph_cmd->add_option("--annotations", morph.annotations_path,
+                        "Template cut annotations (vbutcher-annotations YAML); needs --stage full");
+  morph_cmd->add_option("--cuts", morph.cuts_path,
+                        "Transferred cut planes, lines, confidence and part measures (JSON)");
 
   vb::tools::BenchOptions bench;
   CLI::App* bench_cmd = app.add_subcommand(
       "bench", "Accuracy and speed of the morph on synthetic targets with ground truth");
-  bench_cmd->add_option("stage", bench.stage, "Stage to measure: coarse")->capture_default_str();
+  bench_cmd->add_option("stage", bench.stage, "Stage to measure: coarse | full")
+      ->capture_default_str();
   bench_cmd->add_option("--pairs", bench.pairs, "Lamb targets per noise level")
       ->capture_default_str();
   bench_cmd->add_option("--sigmas-mm", bench.sigmas_mm, "Noise levels")
@@ -74,7 +79,7 @@ int main(int argc, char** argv) {
       ->add_option("--template-features", bench.template_features,
                    "Template skeleton: levelset | mcf")
       ->capture_default_str();
-  bench_cmd->add_option("--csv", bench.csv, "One row per morph")->capture_default_str();
+  bench_cmd->add_option("--csv", bench.csv, "One row per morph (default bench_<stage>.csv)");
 
   CLI11_PARSE(app, argc, argv);
   try {

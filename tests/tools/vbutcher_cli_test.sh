@@ -40,6 +40,21 @@ check "morph writes the posed template and a report" 0 "coarse total" \
 [ -s "$work/m.ply" ] || { echo "FAIL: morph wrote no mesh"; failures=$((failures + 1)); }
 grep -q '"ok": true' "$work/r.json" || { echo "FAIL: report does not say ok"; failures=$((failures + 1)); }
 printf 'OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n' > "$work/open.off"
+# The full stage with the template's cut annotations: morphed mesh, cuts and part measures.
+check "morph --stage full transfers the cuts" 0 "part shoulder" \
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_001_cloud.ply" --out "$work/f.ply" \
+  --stage full --annotations "$work/set/template_annotations.yaml" --cuts "$work/c.json" --report "$work/fr.json"
+for key in '"leg_loin"' '"loin_rack"' '"rack_shoulder"' '"confidence"' '"volume"'; do
+  grep -q -- "$key" "$work/c.json" 2>/dev/null || { echo "FAIL: cuts JSON lacks $key"; failures=$((failures + 1)); }
+done
+grep -q '"rounds"' "$work/fr.json" 2>/dev/null || { echo "FAIL: report lacks the dense rounds"; failures=$((failures + 1)); }
+check "morph --cuts needs --annotations" 2 "--annotations" \
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/x.ply" --stage full --cuts "$work/x.json"
+check "morph --annotations needs the full stage" 2 "--stage full" \
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/x.ply" --annotations "$work/set/template_annotations.yaml"
+sed 's/^vertex_count: .*/vertex_count: 12/' "$work/set/template_annotations.yaml" >"$work/other.yaml"
+check "morph refuses annotations of another mesh, naming the file" 2 "other.yaml" \
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/x.ply" --stage full --annotations "$work/other.yaml"
 check "morph refuses an open template, naming it" 2 "open.off" \
   "$vbutcher" morph --template "$work/open.off" --target "$work/set/target_000.ply" --out "$work/x.ply"
 check "morph refuses an unknown stage" 2 "--stage" \

@@ -1,0 +1,144 @@
+#include "morph/dense_alignment.h"
+
+#include <chrono>
+
+#include "io/mesh_measures.h"
+#include "morph/point_index.h"
+
+namespace vb::morph {
+namespace {
+
+double Since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
+                       const Eigen::Matrix3Xd& target, const Eigen::Matrix3Xd& target_normals,
+                       const DenseOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  DenseResult result;
+  if (!coarse.ok) {
+    result.error = "the coarse stage did not succeed: " + coarse.error;
+    return result;
+  }
+  if (target_normals.cols() != 0 && target_normals.cols() != target.cols()) {
+    result.error = "target has " + std::to_string(target.cols()) + " points but " +
+                   std::to_string(target_normals.cols()) + " normals";
+    return result;
+  }
+  if (target_normals.cols() != 0 && !target_normals.allFinite()) {
+    result.error = "target has non-finite normals";
+    return result;
+  }
+
+  // Everything happens in the template's normalised frame, where lengths are template sizes.
+  const Similarity to_target = coarse.association.from_to;
+  const Similarity to_template = to_target.Inverse();
+  Eigen::Matrix3Xd points(3, target.cols());
+  for (Eigen::Index i = 0; i < target.cols(); ++i) points.col(i) = to_template(target.col(i));
+  const PointIndex index(points);
+
+  io::TriangleMesh posed;
+  posed.V = DeformPoints(model.graph, model.vertex_weights, model.V, coarse.state);
+  posed.F = model.mesh.F;
+  posed.N = io::VertexNormals(posed);
+
+  auto phase = std::chrono::steady_clock::now();
+  Eigen::Matrix3Xd normals;
+  if (target_normals.cols() == 0) {
+    normals = EstimateNormals(points, index, options.normal_neighbours, posed.V, posed.N);
+  } else {
+    normals = to_template.R * target_normals;
+  }
+  result.normals_seconds = Since(phase);
+
+  std::vector<int> samples;
+  const int step = std::max(1, static_cast<int>(model.V.cols()) / std::max(1, options.num_samples));
+  for (int i = 0; i < model.V.cols(); i += step) samples.push_back(i);
+
+  // Each target point's plane passes through the centroid of its neighbours, which averages
+  // the sensor noise along the normal away.
+  Eigen::Matrix3Xd centroids(3, points.cols());
+  {
+    std::vector<int> found;
+    std::vector<double> distances;
+    for (Eigen::Index i = 0; i < points.cols(); ++i) {
+      index.Nearest(points.col(i), options.surface_neighbours, &found, &distances);
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      for (int j : found) sum += points.col(j);
+      centroids.col(i) = sum / static_cast<double>(found.size());
+    }
+  }
+
+  result.state = coarse.state;
+  for (int round = 0; round < options.rounds; ++round) {
+    DenseRound info;
+    phase = std::chrono::steady_clock::now();
+    const DenseAssociation pairs =
+        AssociateDense(posed.V, posed.N, samples, points, normals, index, options.association);
+    info.associated = pairs.size();
+    info.association_seconds = Since(phase);
+
+    phase = std::chrono::steady_clock::now();
+    Eigen::Matrix3Xd a1(3, pairs.size()), a2(3, pairs.size());
+    for (int k = 0; k < pairs.size(); ++k) {
+      a1.col(k) = posed.V.col(pairs.source[static_cast<std::size_t>(k)]);
+      a2.col(k) = points.col(pairs.target[static_cast<std::size_t>(k)]);
+    }
+    const std::vector<bool> kept = FilterAssociations(a1, a2, options.filter);
+    info.filter_seconds = Since(phase);
+
+    std::vector<PointConstraint> constraints;
+    for (int k = 0; k < pairs.size(); ++k) {
+      if (!kept[static_cast<std::size_t>(k)]) continue;
+      const int i = pairs.source[static_cast<std::size_t>(k)];
+      const int j = pairs.target[static_cast<std::size_t>(k)];
+      PointConstraint c;
+      c.rest = model.V.col(i);
+      c.target = centroids.col(j);
+      c.normal = normals.col(j);
+      for (Eigen::Index n = 0; n < model.vertex_weights.nodes.rows(); ++n) {
+        if (model.vertex_weights.nodes(n, i) < 0) continue;
+        c.nodes.push_back(model.vertex_weights.nodes(n, i));
+        c.weights.push_back(model.vertex_weights.weights(n, i));
+      }
+      info.mean_plane_distance += std::abs(c.normal.dot(a1.col(k) - c.target));
+      constraints.push_back(std::move(c));
+    }
+    info.kept = static_cast<int>(constraints.size());
+    if (constraints.size() < 10) {
+      result.error = "dense association found " + std::to_string(constraints.size()) +
+                     " usable pairs in round " + std::to_string(round + 1) +
+                     "; the target does not cover the posed template";
+      return result;
+    }
+    info.mean_plane_distance /= static_cast<double>(constraints.size());
+
+    EmbeddedDeformationOptions deformation = options.deformation;
+    deformation.w_data *=
+        static_cast<double>(model.graph.num_nodes()) / static_cast<double>(constraints.size());
+    info.deformation =
+        SolveEmbeddedDeformation(model.graph, constraints, deformation, &result.state);
+    result.rounds.push_back(info);
+    if (!info.deformation.usable) {
+      result.error = "surface embedded deformation failed: " + info.deformation.message;
+      return result;
+    }
+    posed.V = DeformPoints(model.graph, model.vertex_weights, model.V, result.state);
+    posed.N = io::VertexNormals(posed);
+  }
+
+  result.mesh.F = model.mesh.F;
+  result.mesh.V.resize(3, posed.V.cols());
+  for (Eigen::Index i = 0; i < posed.V.cols(); ++i)
+    result.mesh.V.col(i) = to_target(posed.V.col(i));
+  result.mesh.N = io::VertexNormals(result.mesh);
+  result.target_normals = to_target.R * normals;
+  result.ok = true;
+  result.total_seconds = Since(start);
+  return result;
+}
+
+}  // namespace vb::morph

@@ -1,0 +1,214 @@
+#include "morph/dense_alignment.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <random>
+
+#include "io/mesh_measures.h"
+#include "io/surface_point.h"
+#include "morph/cut_transfer.h"
+#include "morph/dense_association.h"
+#include "perception/carcass_generator.h"
+
+namespace vb::morph {
+namespace {
+
+// Points spread over a unit sphere, with their outward normals.
+Eigen::Matrix3Xd SpherePoints(int n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> g;
+  Eigen::Matrix3Xd P(3, n);
+  for (int i = 0; i < n; ++i) P.col(i) = Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
+  return P;
+}
+
+TEST(EstimateNormalsTest, PointsOutwardOnASphere) {
+  const Eigen::Matrix3Xd P = SpherePoints(3000, 1);
+  const PointIndex index(P);
+  // The reference says "outward" only roughly: a few of its normals point the other way.
+  Eigen::Matrix3Xd reference_normals = P;
+  reference_normals.col(0) *= -1.0;
+  const Eigen::Matrix3Xd N = EstimateNormals(P, index, 16, P, reference_normals);
+  int outward = 0;
+  for (Eigen::Index i = 0; i < P.cols(); ++i) {
+    EXPECT_NEAR(N.col(i).norm(), 1.0, 1e-9);
+    outward += N.col(i).dot(P.col(i)) > std::cos(10.0 * M_PI / 180.0);
+  }
+  EXPECT_GE(outward, static_cast<int>(P.cols()) - 2);
+}
+
+TEST(AssociateDenseTest, PrefersTheSurfaceFacingTheSameWay) {
+  // Two parallel sheets 1 cm apart facing away from each other, as the two sides of a thin
+  // limb. A point on the lower sheet, facing down, is slightly nearer the upper sheet.
+  std::vector<Eigen::Vector3d> points, normals;
+  for (int x = -5; x <= 5; ++x) {
+    for (int y = -5; y <= 5; ++y) {
+      points.emplace_back(0.01 * x, 0.01 * y, 0.0);
+      normals.emplace_back(0, 0, 1);
+      points.emplace_back(0.01 * x, 0.01 * y, -0.01);
+      normals.emplace_back(0, 0, -1);
+    }
+  }
+  Eigen::Matrix3Xd T(3, points.size()), TN(3, points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    T.col(static_cast<Eigen::Index>(i)) = points[i];
+    TN.col(static_cast<Eigen::Index>(i)) = normals[i];
+  }
+  const PointIndex index(T);
+  Eigen::Matrix3Xd S(3, 1), SN(3, 1);
+  S.col(0) = Eigen::Vector3d(0.0, 0.0, -0.004);
+  SN.col(0) = Eigen::Vector3d(0, 0, -1);
+  const DenseAssociation a = AssociateDense(S, SN, {0}, T, TN, index);
+  ASSERT_EQ(a.size(), 1);
+  EXPECT_NEAR(T(2, a.target[0]), -0.01, 1e-12);
+
+  // Nothing within reach: no pair rather than a far one.
+  S.col(0) = Eigen::Vector3d(0.0, 0.0, 1.0);
+  EXPECT_EQ(AssociateDense(S, SN, {0}, T, TN, index).size(), 0);
+}
+
+TEST(FilterAssociationsTest, TrimsThePairsThatBreakLocalRigidity) {
+  const Eigen::Matrix3Xd a1 = SpherePoints(1500, 2);
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).matrix();
+  Eigen::Matrix3Xd a2 = (R * a1).colwise() + Eigen::Vector3d(0.2, -1.0, 3.0);
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> g(0.0, 0.002);
+  for (Eigen::Index i = 0; i < a2.cols(); ++i) a2.col(i) += Eigen::Vector3d(g(rng), g(rng), g(rng));
+  // 5 % wrong pairs: each sent to the partner of another point.
+  std::vector<int> wrong;
+  for (int i = 0; i < 1500; i += 20) {
+    a2.col(i) = a2.col((i + 700) % 1500);
+    wrong.push_back(i);
+  }
+  const std::vector<bool> kept = FilterAssociations(a1, a2);
+  for (int i : wrong) EXPECT_FALSE(kept[static_cast<std::size_t>(i)]) << "wrong pair " << i;
+  int inliers_kept = 0;
+  for (int i = 0; i < 1500; ++i) inliers_kept += kept[static_cast<std::size_t>(i)] && i % 20 != 0;
+  // Neighbours of wrong pairs may go too, but not many.
+  EXPECT_GE(inliers_kept, static_cast<int>(0.9 * (1500 - wrong.size())));
+}
+
+TEST(FilterAssociationsTest, KeepsConsistentPairs) {
+  const Eigen::Matrix3Xd a1 = SpherePoints(800, 4);
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(2.0, Eigen::Vector3d(0, 1, 1).normalized()).matrix();
+  const std::vector<bool> kept = FilterAssociations(a1, R * a1);
+  for (bool k : kept) EXPECT_TRUE(k);
+}
+
+class DenseAlignmentTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    carcass_ = new perception::CarcassTemplate(perception::BuildCarcassTemplate());
+    model_ = new TemplateModel(BuildTemplateModel(carcass_->mesh));
+  }
+  static void TearDownTestSuite() {
+    delete model_;
+    delete carcass_;
+  }
+  static perception::CarcassTemplate* carcass_;
+  static TemplateModel* model_;
+};
+perception::CarcassTemplate* DenseAlignmentTest::carcass_ = nullptr;
+TemplateModel* DenseAlignmentTest::model_ = nullptr;
+
+TEST_F(DenseAlignmentTest, RefinesTheCoarseMorphAndTransfersTheCuts) {
+  for (std::uint64_t seed : {1000003u, 1000006u}) {
+    const perception::PosedCarcass truth =
+        perception::PoseCarcass(*carcass_, perception::SampleCarcassPose(seed));
+    const io::TriangleMesh target = perception::AddNormalNoise(truth.mesh, 0.002, seed);
+    const CoarseResult coarse = AlignCoarse(*model_, target.V);
+    ASSERT_TRUE(coarse.ok) << coarse.error;
+    const DenseResult dense = AlignDense(*model_, coarse, target.V, target.N);
+    ASSERT_TRUE(dense.ok) << dense.error;
+    ASSERT_EQ(dense.mesh.F, model_->mesh.F);
+    ASSERT_EQ(dense.rounds.size(), 3u);
+    for (const DenseRound& round : dense.rounds) EXPECT_GT(round.kept, round.associated / 2);
+
+    const double coarse_error = (coarse.mesh.V - truth.mesh.V).colwise().norm().mean();
+    const double dense_error = (dense.mesh.V - truth.mesh.V).colwise().norm().mean();
+    EXPECT_LT(dense_error, 0.6 * coarse_error) << "seed " << seed;
+    EXPECT_LT(dense_error / io::BoundingBoxDiagonal(truth.mesh.V), 0.012) << "seed " << seed;
+
+    const std::vector<TransferredCut> cuts =
+        TransferCuts(carcass_->annotations, model_->mesh, dense.mesh, target.V,
+                     dense.target_normals, coarse.template_to_target.scale);
+    ASSERT_EQ(cuts.size(), truth.cut_planes.size());
+    for (std::size_t c = 0; c < cuts.size(); ++c) {
+      // Orientation carried over: the normal still points towards the part before the cut.
+      EXPECT_GT(cuts[c].plane.normal.dot(truth.cut_planes[c].normal), std::cos(6.0 * M_PI / 180))
+          << cuts[c].name;
+      double distance = 0.0;
+      for (const io::SurfacePoint& p : carcass_->annotations.cuts[c].line)
+        distance += std::abs(cuts[c].plane.SignedDistance(io::Evaluate(truth.mesh, p)));
+      distance /= static_cast<double>(carcass_->annotations.cuts[c].line.size());
+      EXPECT_LT(distance, 0.015) << cuts[c].name << " seed " << seed;
+      EXPECT_NEAR(cuts[c].coverage, 1.0, 1e-12);
+      EXPECT_GT(cuts[c].confidence, 0.5);
+    }
+    const std::vector<io::PartMeasure> parts = CutParts(dense.mesh, cuts);
+    const std::vector<io::PartMeasure> true_parts = io::MeasureParts(truth.mesh, truth.cut_planes);
+    ASSERT_EQ(parts.size(), 4u);
+    for (std::size_t k = 0; k < parts.size(); ++k)
+      EXPECT_NEAR(parts[k].volume / true_parts[k].volume, 1.0, 0.12) << "part " << k;
+  }
+}
+
+TEST_F(DenseAlignmentTest, CutsOnAnIdentityMorphAreTheTemplateCuts) {
+  const io::TriangleMesh& mesh = carcass_->mesh;
+  const std::vector<TransferredCut> cuts = TransferCuts(carcass_->annotations, mesh, mesh, mesh.V,
+                                                        mesh.N, io::BoundingBoxDiagonal(mesh.V));
+  for (std::size_t c = 0; c < cuts.size(); ++c) {
+    const io::Plane& expected = carcass_->annotations.cuts[c].plane;
+    EXPECT_GT(cuts[c].plane.normal.dot(expected.normal), std::cos(0.5 * M_PI / 180));
+    EXPECT_LT(std::abs(expected.SignedDistance(cuts[c].plane.point)), 0.002);
+    EXPECT_GT(cuts[c].confidence, 0.8);
+  }
+}
+
+TEST_F(DenseAlignmentTest, UnseenCutsGetNoConfidence) {
+  // The target holds only the far end of the carcass: every cut line is out of its reach.
+  const io::TriangleMesh& mesh = carcass_->mesh;
+  const double size = io::BoundingBoxDiagonal(mesh.V);
+  std::vector<int> far;
+  for (int v = 0; v < mesh.num_vertices(); ++v) {
+    bool near_a_cut = false;
+    for (const io::CutAnnotation& cut : carcass_->annotations.cuts)
+      near_a_cut = near_a_cut || std::abs(cut.plane.SignedDistance(mesh.V.col(v))) < 0.1 * size;
+    if (!near_a_cut) far.push_back(v);
+  }
+  ASSERT_GT(far.size(), 100u);
+  Eigen::Matrix3Xd target(3, far.size()), normals(3, far.size());
+  for (std::size_t i = 0; i < far.size(); ++i) {
+    target.col(static_cast<Eigen::Index>(i)) = mesh.V.col(far[i]);
+    normals.col(static_cast<Eigen::Index>(i)) = mesh.N.col(far[i]);
+  }
+  for (const TransferredCut& c :
+       TransferCuts(carcass_->annotations, mesh, mesh, target, normals, size)) {
+    EXPECT_EQ(c.coverage, 0.0) << c.name;
+    EXPECT_EQ(c.confidence, 0.0) << c.name;
+  }
+}
+
+TEST_F(DenseAlignmentTest, ReportsBadInputInsteadOfThrowing) {
+  const perception::PosedCarcass truth =
+      perception::PoseCarcass(*carcass_, perception::SampleCarcassPose(1000003u));
+  const CoarseResult coarse = AlignCoarse(*model_, truth.mesh.V);
+  ASSERT_TRUE(coarse.ok);
+  DenseResult r = AlignDense(*model_, coarse, truth.mesh.V, Eigen::Matrix3Xd::Zero(3, 5));
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.error.find("normals"), std::string::npos);
+  Eigen::Matrix3Xd nan_normals = truth.mesh.N;
+  nan_normals(0, 3) = std::nan("");
+  r = AlignDense(*model_, coarse, truth.mesh.V, nan_normals);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.error.find("non-finite"), std::string::npos);
+  CoarseResult failed;
+  failed.error = "no skeleton";
+  r = AlignDense(*model_, failed, truth.mesh.V, truth.mesh.N);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.error.find("no skeleton"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace vb::morph

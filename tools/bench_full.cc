@@ -1,0 +1,321 @@
+// `vbutcher bench full`: the paper's Table I protocol on synthetic lamb carcasses, plus the
+// cut-plane figures a band saw cares about.
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <numbers>
+#include <sstream>
+
+#include "io/error.h"
+#include "io/mesh_io.h"
+#include "io/mesh_measures.h"
+#include "io/surface_point.h"
+#include "morph/coarse_alignment.h"
+#include "morph/cut_transfer.h"
+#include "morph/dense_alignment.h"
+#include "morph/template_model.h"
+#include "perception/carcass_generator.h"
+#include "tools/bench_command.h"
+
+namespace vb::tools {
+namespace {
+
+struct FullRow {
+  std::string input;
+  double sigma_mm = 0;
+  int index = 0;
+  bool ok = false;
+  std::string error;
+  double coarse_max_rel = 0, coarse_mean_rel = 0;  // of the target's bounding-box diagonal
+  double max_rel = 0, mean_rel = 0, max_mm = 0, mean_mm = 0;
+  std::vector<double> volume_rel_error, area_rel_error;                // per part
+  std::vector<double> cut_angle_deg, cut_distance_mm, cut_confidence;  // per cut
+  double coarse_s = 0, normals_s = 0, dense_s = 0, cuts_s = 0, total_s = 0;
+};
+
+double Since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return std::nan("");
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+double Mean(const std::vector<double>& v) {
+  if (v.empty()) return std::nan("");
+  double s = 0;
+  for (double x : v) s += x;
+  return s / static_cast<double>(v.size());
+}
+
+double Rms(const std::vector<double>& v) {
+  if (v.empty()) return std::nan("");
+  double s = 0;
+  for (double x : v) s += x * x;
+  return std::sqrt(s / static_cast<double>(v.size()));
+}
+
+struct Example {
+  io::TriangleMesh morphed;
+  std::vector<morph::TransferredCut> cuts;
+};
+
+FullRow Evaluate(const morph::TemplateModel& model, const io::Annotations& annotations,
+                 const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
+                 const perception::PosedCarcass& truth, Example* example) {
+  FullRow row;
+  const auto start = std::chrono::steady_clock::now();
+  const morph::CoarseResult coarse = morph::AlignCoarse(model, points);
+  row.coarse_s = coarse.total_seconds;
+  if (!coarse.ok) {
+    row.error = coarse.error;
+    return row;
+  }
+  const double diagonal = io::BoundingBoxDiagonal(truth.mesh.V);
+  {
+    const Eigen::VectorXd e = (coarse.mesh.V - truth.mesh.V).colwise().norm();
+    row.coarse_max_rel = e.maxCoeff() / diagonal;
+    row.coarse_mean_rel = e.mean() / diagonal;
+  }
+  const morph::DenseResult dense = morph::AlignDense(model, coarse, points, normals);
+  row.normals_s = dense.normals_seconds;
+  row.dense_s = dense.total_seconds;
+  if (!dense.ok) {
+    row.error = dense.error;
+    return row;
+  }
+  auto phase = std::chrono::steady_clock::now();
+  const double size = coarse.template_to_target.scale;
+  const std::vector<morph::TransferredCut> cuts =
+      morph::TransferCuts(annotations, model.mesh, dense.mesh, points, dense.target_normals, size);
+  const std::vector<io::PartMeasure> parts = morph::CutParts(dense.mesh, cuts);
+  row.cuts_s = Since(phase);
+  row.total_s = Since(start);
+  row.ok = true;
+
+  const Eigen::VectorXd e = (dense.mesh.V - truth.mesh.V).colwise().norm();
+  row.max_rel = e.maxCoeff() / diagonal;
+  row.mean_rel = e.mean() / diagonal;
+  row.max_mm = e.maxCoeff() * 1000.0;
+  row.mean_mm = e.mean() * 1000.0;
+  const std::vector<io::PartMeasure> true_parts = io::MeasureParts(truth.mesh, truth.cut_planes);
+  for (std::size_t k = 0; k < parts.size() && k < true_parts.size(); ++k) {
+    row.volume_rel_error.push_back(parts[k].volume / true_parts[k].volume - 1.0);
+    row.area_rel_error.push_back(parts[k].area / true_parts[k].area - 1.0);
+  }
+  for (std::size_t c = 0; c < cuts.size(); ++c) {
+    const io::Plane& truth_plane = truth.cut_planes[c];
+    const double cosine = std::clamp(cuts[c].plane.normal.dot(truth_plane.normal), -1.0, 1.0);
+    row.cut_angle_deg.push_back(std::acos(cosine) * 180.0 / std::numbers::pi);
+    // The true cut line: the expert's line carried onto the clean target by its true pose.
+    double sum = 0.0;
+    for (const io::SurfacePoint& sp : annotations.cuts[c].line)
+      sum += std::abs(cuts[c].plane.SignedDistance(io::Evaluate(truth.mesh, sp)));
+    row.cut_distance_mm.push_back(1000.0 * sum /
+                                  static_cast<double>(annotations.cuts[c].line.size()));
+    row.cut_confidence.push_back(cuts[c].confidence);
+  }
+  if (example != nullptr) *example = Example{dense.mesh, cuts};
+  return row;
+}
+
+void WriteExample(const std::filesystem::path& stem, const Example& example) {
+  io::WriteMesh(stem.string() + "_example.ply", example.morphed);
+  std::ofstream out(stem.string() + "_example_cuts.csv");
+  out << "cut,index,x,y,z\n";
+  for (const morph::TransferredCut& c : example.cuts)
+    for (std::size_t i = 0; i < c.line.size(); ++i)
+      out << c.name << ',' << i << ',' << c.line[i].x() << ',' << c.line[i].y() << ','
+          << c.line[i].z() << '\n';
+}
+
+}  // namespace
+
+int RunFullBench(const BenchOptions& options) {
+  const perception::CarcassTemplate carcass = perception::BuildCarcassTemplate();
+  const morph::TemplateModel model = morph::BuildTemplateModel(carcass.mesh);
+  std::printf("lamb template: %d vertices, model built in %.2f s (%d graph nodes)\n",
+              model.mesh.num_vertices(), model.seconds, model.graph.num_nodes());
+  std::vector<FullRow> rows;
+  std::vector<std::pair<std::string, double>> groups;
+  Example example;
+  bool have_example = false;
+  for (double sigma : options.sigmas_mm) {
+    for (const char* input : {"mesh", "cloud"}) {
+      if (std::string(input) == "cloud" && !options.clouds) continue;
+      groups.emplace_back(input, sigma);
+      for (int i = 0; i < options.pairs; ++i) {
+        const std::uint64_t seed = options.seed * 1000003 + static_cast<std::uint64_t>(i);
+        const perception::PosedCarcass truth =
+            perception::PoseCarcass(carcass, perception::SampleCarcassPose(seed));
+        Eigen::Matrix3Xd points, normals;
+        if (std::string(input) == "mesh") {
+          // A mesh target carries its own normals, from its (noisy) faces.
+          const io::TriangleMesh noisy =
+              perception::AddNormalNoise(truth.mesh, sigma / 1000.0, seed + 17);
+          points = noisy.V;
+          normals = io::VertexNormals(noisy);
+        } else {
+          perception::CloudOptions cloud;
+          cloud.sigma_m = sigma / 1000.0;
+          cloud.missing_regions = true;
+          points = perception::SampleSurfaceCloud(truth, cloud, seed + 29).points;
+        }
+        const bool want_example = !have_example && std::string(input) == "cloud";
+        FullRow row = Evaluate(model, carcass.annotations, points, normals, truth,
+                               want_example ? &example : nullptr);
+        have_example = have_example || (want_example && row.ok);
+        row.input = input;
+        row.sigma_mm = sigma;
+        row.index = i;
+        if (!row.ok)
+          std::printf("  %s sigma %g #%d failed: %s\n", input, sigma, i, row.error.c_str());
+        rows.push_back(row);
+      }
+    }
+  }
+
+  // Shapes that are not lambs, re-posed by bends: vertex errors only (they carry no cuts).
+  struct ShapeRow {
+    std::string name;
+    double sigma_mm = 0;
+    int n = 0, ok = 0;
+    std::vector<double> coarse_mean_rel, mean_rel, max_rel, total_s;
+  };
+  std::vector<ShapeRow> shape_rows;
+  for (const std::filesystem::path& path : options.shapes) {
+    morph::TemplateModel shape;
+    try {
+      shape = morph::BuildTemplateModel(io::ReadMesh(path));
+    } catch (const InputError& e) {
+      std::printf("skipping %s: %s\n", path.string().c_str(), e.what());
+      continue;
+    }
+    const double size = io::BoundingBoxDiagonal(shape.mesh.V);
+    for (double sigma : options.sigmas_mm) {
+      ShapeRow sr;
+      sr.name = path.stem().string();
+      sr.sigma_mm = sigma;
+      for (int i = 0; i < options.shape_pairs; ++i) {
+        const io::TriangleMesh truth =
+            BendShape(shape.mesh, options.seed * 7919 + static_cast<std::uint64_t>(i));
+        const io::TriangleMesh noisy =
+            perception::AddNormalNoise(truth, sigma / 1000.0 * size / 1.2, 31 + i);
+        ++sr.n;
+        const auto start = std::chrono::steady_clock::now();
+        const morph::CoarseResult coarse = morph::AlignCoarse(shape, noisy.V);
+        if (!coarse.ok) continue;
+        const morph::DenseResult dense =
+            morph::AlignDense(shape, coarse, noisy.V, io::VertexNormals(noisy));
+        if (!dense.ok) continue;
+        ++sr.ok;
+        const double diagonal = io::BoundingBoxDiagonal(truth.V);
+        sr.total_s.push_back(Since(start));
+        sr.coarse_mean_rel.push_back((coarse.mesh.V - truth.V).colwise().norm().mean() / diagonal);
+        const Eigen::VectorXd e = (dense.mesh.V - truth.V).colwise().norm();
+        sr.mean_rel.push_back(e.mean() / diagonal);
+        sr.max_rel.push_back(e.maxCoeff() / diagonal);
+      }
+      shape_rows.push_back(sr);
+    }
+  }
+
+  std::ostringstream table;
+  table << "| input | sigma mm | n | ok | avg max err % | avg max err mm | mean err mm | coarse "
+           "mean err mm | volume RMSE | area RMSE | cut angle deg | cut dist mm | worst cut dist "
+           "mm | confidence | median s | coarse s | dense s |\n"
+           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const auto& [input, sigma] : groups) {
+    std::vector<double> max_rel, max_mm, mean_mm, coarse_mm, volume, area, angle, distance,
+        confidence, total, coarse_s, dense_s;
+    int n = 0, ok = 0;
+    double worst = 0;
+    for (const FullRow& r : rows) {
+      if (r.input != input || r.sigma_mm != sigma) continue;
+      ++n;
+      if (!r.ok) continue;
+      ++ok;
+      max_rel.push_back(r.max_rel);
+      max_mm.push_back(r.max_mm);
+      mean_mm.push_back(r.mean_mm);
+      coarse_mm.push_back(r.coarse_mean_rel * r.mean_mm / std::max(r.mean_rel, 1e-12));
+      volume.insert(volume.end(), r.volume_rel_error.begin(), r.volume_rel_error.end());
+      area.insert(area.end(), r.area_rel_error.begin(), r.area_rel_error.end());
+      angle.insert(angle.end(), r.cut_angle_deg.begin(), r.cut_angle_deg.end());
+      distance.insert(distance.end(), r.cut_distance_mm.begin(), r.cut_distance_mm.end());
+      confidence.insert(confidence.end(), r.cut_confidence.begin(), r.cut_confidence.end());
+      for (double d : r.cut_distance_mm) worst = std::max(worst, d);
+      total.push_back(r.total_s);
+      coarse_s.push_back(r.coarse_s);
+      dense_s.push_back(r.dense_s);
+    }
+    char line[512];
+    std::snprintf(line, sizeof line,
+                  "| %s | %g | %d | %d | %.2f | %.1f | %.1f | %.1f | %.3f | %.3f | %.2f | %.2f | "
+                  "%.1f | %.2f | %.2f | %.2f | %.2f |\n",
+                  input.c_str(), sigma, n, ok, 100 * Mean(max_rel), Mean(max_mm), Mean(mean_mm),
+                  Mean(coarse_mm), Rms(volume), Rms(area), Mean(angle), Mean(distance), worst,
+                  Mean(confidence), Median(total), Median(coarse_s), Median(dense_s));
+    table << line;
+  }
+  if (!shape_rows.empty()) {
+    table << "\n| shape | sigma (mm at 1.2 m) | n | ok | coarse mean err % | mean err % | avg max "
+             "err % "
+             "| median s |\n|---|---|---|---|---|---|---|---|\n";
+    for (const ShapeRow& sr : shape_rows) {
+      char line[256];
+      std::snprintf(line, sizeof line, "| %s | %g | %d | %d | %.2f | %.2f | %.2f | %.2f |\n",
+                    sr.name.c_str(), sr.sigma_mm, sr.n, sr.ok, 100 * Mean(sr.coarse_mean_rel),
+                    100 * Mean(sr.mean_rel), 100 * Mean(sr.max_rel), Median(sr.total_s));
+      table << line;
+    }
+  }
+  table << "\nerrors are per-vertex distances to the ground truth (max per target, averaged over "
+           "targets, as the paper's Table I); volume and area RMSE are relative, over all parts "
+           "and targets; cut angle and distance (true cut line to predicted plane) are means "
+           "over cuts and targets; times are medians on this machine\n";
+  std::fputs(table.str().c_str(), stdout);
+
+  std::ofstream csv(options.csv);
+  csv << "input,sigma_mm,index,ok,error,coarse_max_rel,coarse_mean_rel,max_rel,mean_rel,max_mm,"
+         "mean_mm";
+  for (const std::string& part : carcass.annotations.parts)
+    csv << ",volume_rel_err_" << part << ",area_rel_err_" << part;
+  for (const io::CutAnnotation& cut : carcass.annotations.cuts)
+    csv << ",angle_deg_" << cut.name << ",distance_mm_" << cut.name << ",confidence_" << cut.name;
+  csv << ",coarse_s,normals_s,dense_s,cuts_s,total_s\n";
+  for (const FullRow& r : rows) {
+    csv << r.input << ',' << r.sigma_mm << ',' << r.index << ',' << r.ok << ",\"" << r.error
+        << "\"," << r.coarse_max_rel << ',' << r.coarse_mean_rel << ',' << r.max_rel << ','
+        << r.mean_rel << ',' << r.max_mm << ',' << r.mean_mm;
+    for (std::size_t k = 0; k < carcass.annotations.parts.size(); ++k) {
+      if (r.ok)
+        csv << ',' << r.volume_rel_error[k] << ',' << r.area_rel_error[k];
+      else
+        csv << ",,";
+    }
+    for (std::size_t c = 0; c < carcass.annotations.cuts.size(); ++c) {
+      if (r.ok)
+        csv << ',' << r.cut_angle_deg[c] << ',' << r.cut_distance_mm[c] << ','
+            << r.cut_confidence[c];
+      else
+        csv << ",,,";
+    }
+    csv << ',' << r.coarse_s << ',' << r.normals_s << ',' << r.dense_s << ',' << r.cuts_s << ','
+        << r.total_s << '\n';
+  }
+  std::filesystem::path stem = options.csv;
+  stem.replace_extension();
+  std::ofstream(stem.string() + ".md") << table.str();
+  if (have_example) WriteExample(stem, example);
+  std::printf("wrote %s, %s.md%s\n", options.csv.string().c_str(), stem.string().c_str(),
+              have_example ? (", " + stem.string() + "_example.ply").c_str() : "");
+  return 0;
+}
+
+}  // namespace vb::tools
