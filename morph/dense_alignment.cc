@@ -1,6 +1,8 @@
 #include "morph/dense_alignment.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 
 #include "io/mesh_measures.h"
 #include "morph/point_index.h"
@@ -72,6 +74,20 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     }
   }
 
+  // Sensor noise, estimated from the spread of the points about their local planes: the data
+  // term is weighted down as it grows (a maximum-likelihood weighting).
+  double noise = 0.0;
+  {
+    std::vector<double> offsets(static_cast<std::size_t>(points.cols()));
+    for (Eigen::Index i = 0; i < points.cols(); ++i)
+      offsets[static_cast<std::size_t>(i)] =
+          std::abs(normals.col(i).dot(points.col(i) - centroids.col(i)));
+    std::nth_element(offsets.begin(), offsets.begin() + offsets.size() / 2, offsets.end());
+    noise = 1.4826 * offsets[offsets.size() / 2];
+  }
+  result.noise = noise;
+  const double relative_noise = noise / options.noise_reference;
+  const double noise_factor = 1.0 / (1.0 + relative_noise * relative_noise);
   result.state = coarse.state;
   for (int round = 0; round < options.rounds; ++round) {
     DenseRound info;
@@ -117,8 +133,8 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     info.mean_plane_distance /= static_cast<double>(constraints.size());
 
     EmbeddedDeformationOptions deformation = options.deformation;
-    deformation.w_data *=
-        static_cast<double>(model.graph.num_nodes()) / static_cast<double>(constraints.size());
+    deformation.w_data *= noise_factor * static_cast<double>(model.graph.num_nodes()) /
+                          static_cast<double>(constraints.size());
     info.deformation =
         SolveEmbeddedDeformation(model.graph, constraints, deformation, &result.state);
     result.rounds.push_back(info);

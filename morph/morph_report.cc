@@ -78,6 +78,7 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
     }
     j["dense"] = {{"ok", dense->ok},
                   {"error", dense->error},
+                  {"estimated_noise_rel", dense->noise},
                   {"normals_s", dense->normals_seconds},
                   {"total_s", dense->total_seconds},
                   {"rounds", rounds}};
