@@ -1,6 +1,8 @@
 #include "io/saw_controller.h"
 
+#include <algorithm>
 #include <cstdio>
+#include <limits>
 
 namespace vb::io::saw {
 
@@ -47,9 +49,10 @@ SawController::Event SawController::CheckJobEnd(const JobEnd& end) {
 
 SawController::Event SawController::OnFrame(const Frame& frame, std::int64_t now_ms) {
   // Deadlines first: a frame arriving after its job's deadline does not rescue the job.
+  const std::uint8_t salt = IsJobBody(frame.id) && in_job_ ? job_.job_sequence : std::uint8_t{0};
   if (Event late = OnTick(now_ms); late.kind != Event::Kind::kNone) {
     // The frame is still checked below so counters stay in step; the tick's event wins.
-    const Check check = checker_.Accept(frame);
+    const Check check = checker_.Accept(frame, salt);
     ++counters_.frames;
     if (check == Check::kOk || check == Check::kInitial) {
       ++counters_.frames_accepted;
@@ -60,7 +63,7 @@ SawController::Event SawController::OnFrame(const Frame& frame, std::int64_t now
     return late;
   }
   ++counters_.frames;
-  const Check check = checker_.Accept(frame);
+  const Check check = checker_.Accept(frame, salt);
   if (check != Check::kOk && check != Check::kInitial) {
     ++counters_.frames_rejected;
     ++counters_.rejected_by_check[static_cast<std::size_t>(check)];
@@ -104,6 +107,7 @@ SawController::Event SawController::OnFrame(const Frame& frame, std::int64_t now
     Event previous;
     if (in_job_) previous = RejectJob(Reason::kIncomplete);
     in_job_ = true;
+    checker_.ResyncJobBody();
     job_started_ms_ = now_ms;
     job_frames_ = 1;
     current_cut_ = -1;
@@ -160,9 +164,7 @@ SawController::Event SawController::OnFrame(const Frame& frame, std::int64_t now
 
 SawController::Event SawController::OnTick(std::int64_t now_ms) {
   Event e;
-  if (!safe_stop_ &&
-      (!heartbeat_seen_ ||
-       now_ms - last_heartbeat_ms_ >= options_.heartbeat_timeout_periods * kHeartbeatPeriodMs)) {
+  if (!safe_stop_ && (!heartbeat_seen_ || now_ms >= HeartbeatDeadline())) {
     safe_stop_ = true;
     good_heartbeats_ = 0;
     ++counters_.safe_stops;
@@ -179,6 +181,18 @@ SawController::Event SawController::OnTick(std::int64_t now_ms) {
   }
   if (in_job_ && now_ms - job_started_ms_ > kJobDeadlineMs) return RejectJob(Reason::kDeadline);
   return e;
+}
+
+std::int64_t SawController::HeartbeatDeadline() const {
+  return last_heartbeat_ms_ + options_.heartbeat_timeout_periods * kHeartbeatPeriodMs -
+         options_.reaction_margin_ms;
+}
+
+std::int64_t SawController::NextDeadlineMs() const {
+  std::int64_t next = std::numeric_limits<std::int64_t>::max();
+  if (!safe_stop_ && heartbeat_seen_) next = HeartbeatDeadline();
+  if (in_job_) next = std::min(next, job_started_ms_ + kJobDeadlineMs + 1);
+  return next;
 }
 
 std::string SawController::Describe(const Event& event) {

@@ -19,6 +19,9 @@ class SawController {
   struct Options {
     /// Safe stop when no good heartbeat arrived for this many periods.
     int heartbeat_timeout_periods = 3;
+    /// The timeout fires this much earlier, so that the saw is stopped within
+    /// heartbeat_timeout_periods of the daemon dying even with this much wake-up latency.
+    int reaction_margin_ms = 25;
     /// Good heartbeats in a row needed to leave safe stop.
     int heartbeats_to_recover = 3;
     /// Workspace of the saw (saw frame, metres): waypoints outside are refused.
@@ -62,6 +65,9 @@ class SawController {
   Event OnTick(std::int64_t now_ms);
 
   bool safe_stop() const { return safe_stop_; }
+  /// When OnTick must next be called at the latest (heartbeat or job deadline), in the
+  /// clock of OnFrame/OnTick; a large value when nothing is pending.
+  std::int64_t NextDeadlineMs() const;
   const Counters& counters() const { return counters_; }
   /// The last job the saw accepted (valid when counters().jobs_accepted > 0).
   const Job& last_job() const { return last_job_; }
@@ -71,6 +77,7 @@ class SawController {
  private:
   Event RejectJob(Reason reason);
   Event CheckJobEnd(const JobEnd& end);
+  std::int64_t HeartbeatDeadline() const;
 
   Options options_;
   Checker checker_;

@@ -46,21 +46,26 @@ std::uint8_t Crc8J1850(std::span<const std::uint8_t> bytes) {
   return crc.checksum();
 }
 
-std::uint8_t FrameCrc(const Frame& frame) {
+bool IsJobBody(std::uint32_t can_id) {
+  return can_id == kCutHeaderId || can_id == kJobEndId ||
+         (can_id >= kWaypointBaseId && can_id < kWaypointBaseId + kMaxCuts);
+}
+
+std::uint8_t FrameCrc(const Frame& frame, std::uint8_t salt) {
   const std::uint16_t data_id = DataId(frame.id);
   std::array<std::uint8_t, 9> bytes{};
   bytes[0] = static_cast<std::uint8_t>(data_id & 0xFF);
-  bytes[1] = static_cast<std::uint8_t>(data_id >> 8);
+  bytes[1] = static_cast<std::uint8_t>((data_id >> 8) ^ salt);
   for (int i = 1; i < 8; ++i)
     bytes[static_cast<std::size_t>(i + 1)] = frame.data[static_cast<std::size_t>(i)];
   return Crc8J1850(bytes);
 }
 
-void Protector::Protect(Frame* frame) {
+void Protector::Protect(Frame* frame, std::uint8_t salt) {
   std::uint8_t& next = next_[frame->id & 0x7FF];
   frame->data[1] = static_cast<std::uint8_t>((frame->data[1] & 0xF0) | next);
   next = static_cast<std::uint8_t>((next + 1) % kCounterModulus);
-  frame->data[0] = FrameCrc(*frame);
+  frame->data[0] = FrameCrc(*frame, salt);
 }
 
 std::string_view ToString(Check check) {
@@ -95,10 +100,15 @@ void Checker::Reset() {
     if (c != -1) c = -2;
 }
 
-Check Checker::Accept(const Frame& frame) {
+void Checker::ResyncJobBody() {
+  for (std::uint32_t id = 0; id < last_.size(); ++id)
+    if (last_[id] != -1 && IsJobBody(id)) last_[id] = -2;
+}
+
+Check Checker::Accept(const Frame& frame, std::uint8_t salt) {
   if (frame.id > 0x7FF || last_[frame.id] == -1) return Check::kUnknownId;
   if (frame.dlc != 8) return Check::kBadLength;
-  if (FrameCrc(frame) != frame.data[0]) return Check::kCrc;
+  if (FrameCrc(frame, salt) != frame.data[0]) return Check::kCrc;
   const int counter = frame.data[1] & 0x0F;
   if (counter >= kCounterModulus) return Check::kBadCounter;
   std::int8_t& last = last_[frame.id];
@@ -278,7 +288,10 @@ int EncodeJob(const Job& job, Protector* protector, std::array<Frame, kMaxJobFra
   out[static_cast<std::size_t>(n)] =
       Encode(JobEnd{job.carcass_id, static_cast<std::uint8_t>(n + 1), job.job_sequence});
   ++n;
-  for (int i = 0; i < n; ++i) protector->Protect(&out[static_cast<std::size_t>(i)]);
+  for (int i = 0; i < n; ++i) {
+    Frame& f = out[static_cast<std::size_t>(i)];
+    protector->Protect(&f, IsJobBody(f.id) ? job.job_sequence : std::uint8_t{0});
+  }
   return n;
 }
 

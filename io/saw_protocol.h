@@ -48,14 +48,20 @@ std::uint16_t DataId(std::uint32_t can_id);
 /// CRC-8 SAE J1850 of @p bytes (Boost.CRC).
 std::uint8_t Crc8J1850(std::span<const std::uint8_t> bytes);
 
-/// The E2E CRC of a frame: over DataId(id) low byte, high byte, then data[1..7].
-std::uint8_t FrameCrc(const Frame& frame);
+/// The E2E CRC of a frame: over DataId(id) low byte, high byte XOR @p salt, then data[1..7].
+/// The frames inside a job (cut headers, waypoints, job end) are salted with the job's
+/// sequence number, so no frame of one job can pass inside another: the salt changes one
+/// byte, a burst CRC-8 always detects.
+std::uint8_t FrameCrc(const Frame& frame, std::uint8_t salt = 0);
+
+/// True for the identifiers salted with the job sequence.
+bool IsJobBody(std::uint32_t can_id);
 
 /// Stamps outgoing frames: per-identifier alive counter (0..14, wrapping) and CRC.
 class Protector {
  public:
   /// Sets the counter nibble of data[1] and the CRC in data[0].
-  void Protect(Frame* frame);
+  void Protect(Frame* frame, std::uint8_t salt = 0);
 
  private:
   std::array<std::uint8_t, 0x800> next_{};  // by 11-bit identifier
@@ -80,9 +86,13 @@ class Checker {
  public:
   /// @p ids the identifiers this receiver accepts.
   explicit Checker(std::span<const std::uint32_t> ids);
-  Check Accept(const Frame& frame);
+  Check Accept(const Frame& frame, std::uint8_t salt = 0);
   /// Forget the counter of every identifier (after a timeout the next frame resynchronises).
   void Reset();
+  /// Forget the counters of the job-body identifiers: called when a job starts, so frames
+  /// lost in an earlier (refused) job do not also sink this one. Safe because body frames
+  /// are salted with the job sequence, and the receiver checks their order itself.
+  void ResyncJobBody();
 
  private:
   std::array<std::int8_t, 0x800> last_;  // -1: unknown id, -2: not yet seen, else counter

@@ -7,7 +7,9 @@
 #include "io/error.h"
 #include "perception/synthetic_set.h"
 #include "tools/bench_command.h"
+#include "tools/lcm_command.h"
 #include "tools/morph_command.h"
+#include "tools/saw_command.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"VirtualButcher command-line tool"};
@@ -81,6 +83,53 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   bench_cmd->add_option("--csv", bench.csv, "One row per morph (default bench_<stage>.csv)");
 
+  vb::tools::SawSimOptions saw_sim;
+  CLI::App* saw_sim_cmd = app.add_subcommand(
+      "saw-sim", "Reference band-saw controller on a CAN interface (checks, acks, safe stop)");
+  saw_sim_cmd->add_option("--can", saw_sim.interface, "CAN interface, e.g. vcan0")->required();
+  saw_sim_cmd->add_option("--seconds", saw_sim.seconds, "Stop after this long (0: on SIGTERM)")
+      ->capture_default_str();
+  saw_sim_cmd->add_flag("--quiet", saw_sim.quiet, "Log jobs and safe stops, not each bad frame");
+  saw_sim_cmd->add_option("--ids-out", saw_sim.ids_out, "Write accepted carcass ids here");
+
+  vb::tools::SawSendOptions saw_send;
+  CLI::App* saw_send_cmd = app.add_subcommand(
+      "saw-send", "Send the saw heartbeats and synthetic jobs on a CAN interface, with faults");
+  saw_send_cmd->add_option("--can", saw_send.interface, "CAN interface, e.g. vcan0")->required();
+  saw_send_cmd->add_option("--jobs", saw_send.jobs, "Jobs to send")->capture_default_str();
+  saw_send_cmd->add_option("--fault", saw_send.fault, "none | mix")->capture_default_str();
+  saw_send_cmd->add_option("--fault-rate", saw_send.fault_rate, "Per-frame fault probability")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  saw_send_cmd->add_option("--seed", saw_send.seed, "Seed of the faults")->capture_default_str();
+  saw_send_cmd->add_option("--job-gap-ms", saw_send.job_gap_ms, "Pause between jobs")
+      ->capture_default_str();
+  saw_send_cmd->add_option("--ids-out", saw_send.ids_out, "Write the clean jobs' carcass ids here");
+
+  vb::tools::LcmPublishOptions lcm_publish;
+  CLI::App* lcm_publish_cmd = app.add_subcommand(
+      "lcm-publish", "Publish the cut lines of a cuts file (from morph --cuts) on LCM");
+  lcm_publish_cmd->add_option("--cuts", lcm_publish.cuts_path, "vbutcher-cuts JSON")
+      ->required()
+      ->check(CLI::ExistingFile);
+  lcm_publish_cmd->add_option("--url", lcm_publish.url, "LCM URL")->capture_default_str();
+  lcm_publish_cmd->add_option("--carcass-id", lcm_publish.carcass_id, "Carcass id")
+      ->capture_default_str();
+  lcm_publish_cmd->add_option("--count", lcm_publish.count, "Messages to send")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  lcm_publish_cmd->add_option("--period-ms", lcm_publish.period_ms, "Pause between messages")
+      ->capture_default_str();
+
+  vb::tools::LcmListenOptions lcm_listen;
+  CLI::App* lcm_listen_cmd =
+      app.add_subcommand("lcm-listen", "Receive and check cut-lines messages on LCM");
+  lcm_listen_cmd->add_option("--url", lcm_listen.url, "LCM URL")->capture_default_str();
+  lcm_listen_cmd->add_option("--count", lcm_listen.count, "Messages to wait for")
+      ->capture_default_str();
+  lcm_listen_cmd->add_option("--timeout", lcm_listen.timeout_s, "Seconds to wait")
+      ->capture_default_str();
+
   CLI11_PARSE(app, argc, argv);
   try {
     if (synth_cmd->parsed()) {
@@ -90,6 +139,10 @@ int main(int argc, char** argv) {
     }
     if (morph_cmd->parsed()) return vb::tools::RunMorphCommand(morph);
     if (bench_cmd->parsed()) return vb::tools::RunBenchCommand(bench);
+    if (saw_sim_cmd->parsed()) return vb::tools::RunSawSim(saw_sim);
+    if (saw_send_cmd->parsed()) return vb::tools::RunSawSend(saw_send);
+    if (lcm_publish_cmd->parsed()) return vb::tools::RunLcmPublish(lcm_publish);
+    if (lcm_listen_cmd->parsed()) return vb::tools::RunLcmListen(lcm_listen);
   } catch (const vb::InputError& e) {
     std::fprintf(stderr, "vbutcher: %s\n", e.what());
     return 2;

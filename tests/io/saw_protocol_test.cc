@@ -284,10 +284,11 @@ TEST_F(SawControllerTest, RefusesDuplicateLateIncompleteAndOutOfRangeJobs) {
   EXPECT_EQ(Feed(JobFrames(MakeJob(10, 6))).kind, SawController::Event::Kind::kJobAccepted);
 }
 
-TEST_F(SawControllerTest, SafeStopExactlyThreePeriodsAfterTheLastHeartbeat) {
-  Heartbeats(0, 500);  // last at t = 400
-  EXPECT_EQ(saw_.OnTick(699).kind, SawController::Event::Kind::kNone);
-  const SawController::Event e = saw_.OnTick(700);
+TEST_F(SawControllerTest, SafeStopWithinThreePeriodsOfTheLastHeartbeat) {
+  Heartbeats(0, 500);  // last at t = 400; the margin takes 25 ms off 3 periods
+  EXPECT_EQ(saw_.NextDeadlineMs(), 675);
+  EXPECT_EQ(saw_.OnTick(674).kind, SawController::Event::Kind::kNone);
+  const SawController::Event e = saw_.OnTick(675);
   EXPECT_EQ(e.kind, SawController::Event::Kind::kSafeStopEntered);
   ASSERT_TRUE(e.ack.has_value());
   EXPECT_EQ(e.ack->status, AckStatus::kSafeStop);
@@ -298,6 +299,27 @@ TEST_F(SawControllerTest, SafeStopExactlyThreePeriodsAfterTheLastHeartbeat) {
   Heartbeats(800, 1100);
   EXPECT_FALSE(saw_.safe_stop());
   EXPECT_EQ(saw_.counters().safe_stops, 1);
+}
+
+TEST_F(SawControllerTest, FramesOfOneJobNeverPassInAnother) {
+  Heartbeats(0, 400);
+  const std::vector<Frame> first = JobFrames(MakeJob(20, 1));
+  ASSERT_EQ(Feed(first).kind, SawController::Event::Kind::kJobAccepted);
+  // Job 2 with a waypoint swapped for the same waypoint of job 1 (same identifier, index
+  // and even the counter it would have had): the job-sequence salt makes its CRC fail.
+  std::vector<Frame> second = JobFrames(MakeJob(21, 2));
+  Frame old = first[3];
+  old.data[1] = static_cast<std::uint8_t>((old.data[1] & 0xF0) | (second[3].data[1] & 0x0F));
+  old.data[0] = FrameCrc(old, 1);  // a valid frame of job 1
+  second[3] = old;
+  const SawController::Event e = Feed(second);
+  EXPECT_EQ(e.kind, SawController::Event::Kind::kJobRejected);
+  EXPECT_EQ(e.check, Check::kCrc);
+  // A lost frame in a refused job does not sink the next, clean job.
+  std::vector<Frame> third = JobFrames(MakeJob(22, 3));
+  third.erase(third.begin() + 5);
+  EXPECT_EQ(Feed(third).kind, SawController::Event::Kind::kJobRejected);
+  EXPECT_EQ(Feed(JobFrames(MakeJob(23, 4))).kind, SawController::Event::Kind::kJobAccepted);
 }
 
 TEST_F(SawControllerTest, RandomFramesNeverMakeAJob) {

@@ -1,0 +1,130 @@
+#include "tools/lcm_command.h"
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <lcm/lcm-cpp.hpp>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "io/error.h"
+#include "io/lcm_publisher.h"
+
+namespace vb::tools {
+namespace {
+
+std::int64_t NowMicros() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+// Reads the cuts file `vbutcher morph --cuts` writes into a cut-lines message.
+vbutcher::cut_lines_t ReadCuts(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path.string() + ": cannot open");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+    if (j.at("format") != "vbutcher-cuts")
+      throw InputError(path.string() + ": format is not vbutcher-cuts");
+    vbutcher::cut_lines_t m;
+    for (const auto& c : j.at("cuts")) {
+      vbutcher::cut_t cut;
+      cut.name = c.at("name").get<std::string>();
+      for (int a = 0; a < 3; ++a) {
+        cut.plane_point[a] = c.at("plane").at("point").at(a).get<double>();
+        cut.plane_normal[a] = c.at("plane").at("normal").at(a).get<double>();
+      }
+      cut.fit_rms_m = c.at("fit_rms").get<float>();
+      cut.coverage = c.at("coverage").get<float>();
+      cut.confidence = c.at("confidence").get<float>();
+      for (const auto& p : c.at("line"))
+        cut.line.push_back({p.at(0).get<float>(), p.at(1).get<float>(), p.at(2).get<float>()});
+      cut.num_points = static_cast<std::int16_t>(std::min<std::size_t>(cut.line.size(), 32767));
+      m.cuts.push_back(std::move(cut));
+    }
+    for (const auto& p : j.at("parts")) {
+      vbutcher::part_t part;
+      part.name = p.at("name").get<std::string>();
+      part.volume_m3 = p.at("volume").get<double>();
+      part.area_m2 = p.at("area").get<double>();
+      m.parts.push_back(std::move(part));
+    }
+    m.num_cuts = static_cast<std::int8_t>(std::min<std::size_t>(m.cuts.size(), 127));
+    m.num_parts = static_cast<std::int8_t>(std::min<std::size_t>(m.parts.size(), 127));
+    return m;
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(path.string() + ": " + e.what());
+  }
+}
+
+struct CutLinesCounter {
+  void On(const lcm::ReceiveBuffer*, const std::string& channel, const vbutcher::cut_lines_t* m) {
+    const std::string problem = io::ValidateCutLines(*m);
+    if (!problem.empty()) {
+      std::printf("lcm-listen: %s: invalid message: %s\n", channel.c_str(), problem.c_str());
+      ++invalid;
+      return;
+    }
+    if (m->sequence <= last_sequence) ++out_of_order;
+    last_sequence = m->sequence;
+    ++received;
+    std::printf("lcm-listen: %s seq %lld carcass %s: %d cuts, %d parts\n", channel.c_str(),
+                static_cast<long long>(m->sequence), m->carcass_id.c_str(), m->num_cuts,
+                m->num_parts);
+  }
+  int received = 0, invalid = 0, out_of_order = 0;
+  std::int64_t last_sequence = 0;
+};
+
+}  // namespace
+
+int RunLcmPublish(const LcmPublishOptions& options) {
+  vbutcher::cut_lines_t message = ReadCuts(options.cuts_path);
+  io::ThinCutLines(&message);
+  message.carcass_id = options.carcass_id;
+  message.template_id = options.template_id;
+  message.template_version = 1;
+  message.waypoints_sent = false;
+  message.status = "published by vbutcher lcm-publish";
+  io::LcmPublisher publisher(options.url);
+  for (int i = 0; i < options.count; ++i) {
+    message.utime = NowMicros();
+    if (!publisher.Publish(message)) {
+      std::fprintf(stderr, "vbutcher: lcm-publish: %s\n", publisher.last_error().c_str());
+      return 3;
+    }
+    vbutcher::status_t status;
+    status.utime = message.utime;
+    status.state = vbutcher::status_t::READY;
+    status.state_text = "lcm-publish";
+    status.num_cameras = 0;
+    status.can_state = "none";
+    publisher.Publish(status);
+    if (i + 1 < options.count)
+      std::this_thread::sleep_for(std::chrono::milliseconds(options.period_ms));
+  }
+  std::printf("lcm-publish: %d cut-lines messages of %d bytes on %s\n", options.count,
+              message.getEncodedSize(), options.url.c_str());
+  return 0;
+}
+
+int RunLcmListen(const LcmListenOptions& options) {
+  lcm::LCM lcm(options.url);
+  if (!lcm.good()) throw InputError("LCM URL '" + options.url + "': LCM could not start on it");
+  CutLinesCounter counter;
+  lcm.subscribe("VB_CUT_LINES", &CutLinesCounter::On, &counter);
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::duration<double>(options.timeout_s);
+  while (counter.received < options.count && std::chrono::steady_clock::now() < deadline) {
+    lcm.handleTimeout(50);
+    std::fflush(stdout);
+  }
+  std::printf("lcm-listen summary: received %d invalid %d out_of_order %d\n", counter.received,
+              counter.invalid, counter.out_of_order);
+  return counter.received >= options.count && counter.invalid == 0 && counter.out_of_order == 0 ? 0
+                                                                                                : 3;
+}
+
+}  // namespace vb::tools
