@@ -15,7 +15,11 @@ work=$(readlink -f "$work")
 # The kernel: Debian's linux-image-amd64 (its CAN, vcan, can-gw and 9p modules are plain .ko).
 deb=$(ls "$work"/linux-image-*-amd64_*.deb 2>/dev/null | head -1 || true)
 if [ -z "$deb" ]; then
-  package=$(apt-cache depends linux-image-amd64 | awk '/Depends: linux-image-[0-9]/ {print $2; exit}')
+  package=$(apt-cache depends linux-image-amd64 2>/dev/null | awk '/Depends: linux-image-[0-9]/ {print $2; exit}' || true)
+  if [ -z "$package" ]; then  # no package lists yet on a fresh machine
+    apt-get update -q -o DPkg::Lock::Timeout=600 >/dev/null
+    package=$(apt-cache depends linux-image-amd64 | awk '/Depends: linux-image-[0-9]/ {print $2; exit}')
+  fi
   [ -n "$package" ] || { echo "FAIL: apt-cache knows no linux-image-amd64 (run apt-get update)"; exit 1; }
   (cd "$work" && apt-get download "$package" 2>&1 | tail -1)
   deb=$(ls "$work"/linux-image-*-amd64_*.deb | head -1)
