@@ -18,7 +18,8 @@ struct BenchOptions {
   std::vector<std::filesystem::path> shapes;  ///< extra closed meshes, re-posed by bends
   int shape_pairs = 5;
   std::string template_features = "levelset";  ///< levelset | mcf
-  std::filesystem::path csv;                   ///< default bench_<stage>.csv
+  int dense_rounds = 3;       ///< full stage: association -> filter -> deformation rounds
+  std::filesystem::path csv;  ///< default bench_<stage>.csv
 };
 
 /// `vbutcher bench coarse`: morphs synthetic targets with known correspondence and prints a

@@ -67,7 +67,8 @@ struct Example {
 
 FullRow Evaluate(const morph::TemplateModel& model, const io::Annotations& annotations,
                  const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
-                 const perception::PosedCarcass& truth, Example* example) {
+                 const perception::PosedCarcass& truth, const morph::DenseOptions& dense_options,
+                 Example* example) {
   FullRow row;
   const auto start = std::chrono::steady_clock::now();
   const morph::CoarseResult coarse = morph::AlignCoarse(model, points);
@@ -82,7 +83,7 @@ FullRow Evaluate(const morph::TemplateModel& model, const io::Annotations& annot
     row.coarse_max_rel = e.maxCoeff() / diagonal;
     row.coarse_mean_rel = e.mean() / diagonal;
   }
-  const morph::DenseResult dense = morph::AlignDense(model, coarse, points, normals);
+  const morph::DenseResult dense = morph::AlignDense(model, coarse, points, normals, dense_options);
   row.normals_s = dense.normals_seconds;
   row.dense_s = dense.total_seconds;
   if (!dense.ok) {
@@ -141,6 +142,9 @@ int RunFullBench(const BenchOptions& options) {
   const morph::TemplateModel model = morph::BuildTemplateModel(carcass.mesh);
   std::printf("lamb template: %d vertices, model built in %.2f s (%d graph nodes)\n",
               model.mesh.num_vertices(), model.seconds, model.graph.num_nodes());
+  if (options.dense_rounds < 1) throw InputError("bench: --dense-rounds must be at least 1");
+  morph::DenseOptions dense_options;
+  dense_options.rounds = options.dense_rounds;
   std::vector<FullRow> rows;
   std::vector<std::pair<std::string, double>> groups;
   Example example;
@@ -167,7 +171,7 @@ int RunFullBench(const BenchOptions& options) {
           points = perception::SampleSurfaceCloud(truth, cloud, seed + 29).points;
         }
         const bool want_example = !have_example && std::string(input) == "cloud";
-        FullRow row = Evaluate(model, carcass.annotations, points, normals, truth,
+        FullRow row = Evaluate(model, carcass.annotations, points, normals, truth, dense_options,
                                want_example ? &example : nullptr);
         have_example = have_example || (want_example && row.ok);
         row.input = input;
@@ -211,7 +215,7 @@ int RunFullBench(const BenchOptions& options) {
         const morph::CoarseResult coarse = morph::AlignCoarse(shape, noisy.V);
         if (!coarse.ok) continue;
         const morph::DenseResult dense =
-            morph::AlignDense(shape, coarse, noisy.V, io::VertexNormals(noisy));
+            morph::AlignDense(shape, coarse, noisy.V, io::VertexNormals(noisy), dense_options);
         if (!dense.ok) continue;
         ++sr.ok;
         const double diagonal = io::BoundingBoxDiagonal(truth.V);

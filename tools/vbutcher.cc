@@ -81,6 +81,8 @@ int main(int argc, char** argv) {
       ->add_option("--template-features", bench.template_features,
                    "Template skeleton: levelset | mcf")
       ->capture_default_str();
+  bench_cmd->add_option("--dense-rounds", bench.dense_rounds, "Full stage: dense rounds")
+      ->capture_default_str();
   bench_cmd->add_option("--csv", bench.csv, "One row per morph (default bench_<stage>.csv)");
 
   vb::tools::SawSimOptions saw_sim;

@@ -10,9 +10,9 @@ namespace saw = vb::io::saw;
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   static constexpr std::uint32_t kIds[] = {
-      saw::kHeartbeatId,       saw::kJobStartId,        saw::kCutHeaderId,
-      saw::kJobEndId,          saw::kWaypointBaseId,    saw::kWaypointBaseId + 1,
-      saw::kWaypointBaseId + 7, saw::kAckId,            0x7FF};
+      saw::kHeartbeatId,        saw::kJobStartId,     saw::kCutHeaderId,
+      saw::kJobEndId,           saw::kWaypointBaseId, saw::kWaypointBaseId + 1,
+      saw::kWaypointBaseId + 7, saw::kAckId,          0x7FF};
   saw::SawController controller;
   saw::Protector protector;
   std::int64_t now = 0;

@@ -38,8 +38,8 @@ std::map<std::uint32_t, Message> LoadDbc() {
       current = static_cast<std::uint32_t>(std::stoul(m[1]));
       out[current].name = m[2];
     } else if (std::regex_search(line, m, sg)) {
-      Signal s{std::stoi(m[2]), std::stoi(m[3]), m[4] == "-", std::stod(m[5]), std::stod(m[6]),
-               std::stod(m[7]), std::stod(m[8])};
+      Signal s{std::stoi(m[2]), std::stoi(m[3]), m[4] == "-",    std::stod(m[5]),
+               std::stod(m[6]), std::stod(m[7]), std::stod(m[8])};
       out[current].signals[m[1]] = s;
     }
   }
@@ -49,7 +49,8 @@ std::map<std::uint32_t, Message> LoadDbc() {
 // Intel (little-endian) signal extraction, as DBC tools do it.
 double Extract(const Frame& f, const Signal& s) {
   std::uint64_t raw = 0;
-  for (int i = 0; i < 8; ++i) raw |= static_cast<std::uint64_t>(f.data[static_cast<std::size_t>(i)]) << (8 * i);
+  for (int i = 0; i < 8; ++i)
+    raw |= static_cast<std::uint64_t>(f.data[static_cast<std::size_t>(i)]) << (8 * i);
   std::uint64_t v = (raw >> s.start) & ((s.length == 64) ? ~0ull : ((1ull << s.length) - 1));
   double value = static_cast<double>(v);
   if (s.is_signed && (v >> (s.length - 1)) & 1) value -= std::ldexp(1.0, s.length);
@@ -88,7 +89,9 @@ TEST_F(SawDbcTest, EveryMessageMatchesItsDbcDefinition) {
   salt_ = 250;
   f = Encode(CutHeader{2, 5, 87, 0xCAFEF00D});
   protector_.Protect(&f, salt_);
-  Expect(f, {{"CutIndex", 2}, {"NumWaypoints", 5}, {"ConfidencePercent", 87}, {"CarcassId", 0xCAFEF00D}});
+  Expect(
+      f,
+      {{"CutIndex", 2}, {"NumWaypoints", 5}, {"ConfidencePercent", 87}, {"CarcassId", 0xCAFEF00D}});
   for (std::uint8_t cut = 0; cut < kMaxCuts; ++cut) {
     f = Encode(Waypoint{cut, 11, {-12345, 27, 32767}});
     protector_.Protect(&f, salt_);
