@@ -71,6 +71,16 @@ LcmPublisher::LcmPublisher(const std::string& url, LcmChannels channels)
 
 LcmPublisher::~LcmPublisher() = default;
 
+template <typename Message>
+bool LcmPublisher::Send(const std::string& channel, std::int64_t* sequence, Message* message) {
+  message->sequence = ++*sequence;
+  if (lcm_->publish(channel, message) != 0) {
+    last_error_ = "publishing on " + channel + " failed";
+    return false;
+  }
+  return true;
+}
+
 bool LcmPublisher::Publish(vbutcher::cut_lines_t& message) {
   if (std::string why = ValidateCutLines(message); !why.empty()) {
     last_error_ = "cut lines of carcass '" + message.carcass_id + "' not published: " + why;
@@ -83,12 +93,7 @@ bool LcmPublisher::Publish(vbutcher::cut_lines_t& message) {
                   std::to_string(kMaxCutLinesBytes);
     return false;
   }
-  message.sequence = ++cut_lines_sequence_;
-  if (lcm_->publish(channels_.cut_lines, &message) != 0) {
-    last_error_ = "publishing on " + channels_.cut_lines + " failed";
-    return false;
-  }
-  return true;
+  return Send(channels_.cut_lines, &cut_lines_sequence_, &message);
 }
 
 bool LcmPublisher::Publish(vbutcher::status_t& message) {
@@ -97,21 +102,11 @@ bool LcmPublisher::Publish(vbutcher::status_t& message) {
     last_error_ = "status not published: num_cameras does not match cameras";
     return false;
   }
-  message.sequence = ++status_sequence_;
-  if (lcm_->publish(channels_.status, &message) != 0) {
-    last_error_ = "publishing on " + channels_.status + " failed";
-    return false;
-  }
-  return true;
+  return Send(channels_.status, &status_sequence_, &message);
 }
 
 bool LcmPublisher::Publish(vbutcher::diagnostic_t& message) {
-  message.sequence = ++diagnostics_sequence_;
-  if (lcm_->publish(channels_.diagnostics, &message) != 0) {
-    last_error_ = "publishing on " + channels_.diagnostics + " failed";
-    return false;
-  }
-  return true;
+  return Send(channels_.diagnostics, &diagnostics_sequence_, &message);
 }
 
 }  // namespace vb::io

@@ -64,6 +64,9 @@ class LcmPublisher final : public Publisher {
   lcm::LCM& lcm() { return *lcm_; }
 
  private:
+  template <typename Message>
+  bool Send(const std::string& channel, std::int64_t* sequence, Message* message);
+
   std::unique_ptr<lcm::LCM> lcm_;
   LcmChannels channels_;
   std::int64_t cut_lines_sequence_ = 0;

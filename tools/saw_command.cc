@@ -146,15 +146,18 @@ int RunSawSend(const SawSendOptions& options) {
   if (!options.ids_out.empty() && ids == nullptr)
     throw InputError("saw-send: --ids-out: cannot write " + options.ids_out);
 
+  // The heartbeat, when due; one that cannot go out within half a period is dropped.
+  auto heartbeat_if_due = [&] {
+    if (Clock::now() < next_heartbeat) return;
+    saw::Frame hb = saw::Encode(saw::Heartbeat{saw::DaemonState::kReady, uptime});
+    uptime += saw::kHeartbeatPeriodMs;
+    protector.Protect(&hb);
+    can.Send(hb, next_heartbeat + std::chrono::milliseconds(saw::kHeartbeatPeriodMs / 2));
+    next_heartbeat += std::chrono::milliseconds(saw::kHeartbeatPeriodMs);
+  };
   // Sends one frame unless its deadline passed; the heartbeat is kept going in between.
   auto send = [&](const saw::Frame& f) {
-    if (Clock::now() >= next_heartbeat) {
-      saw::Frame hb = saw::Encode(saw::Heartbeat{saw::DaemonState::kReady, uptime});
-      uptime += saw::kHeartbeatPeriodMs;
-      protector.Protect(&hb);
-      can.Send(hb, next_heartbeat + std::chrono::milliseconds(saw::kHeartbeatPeriodMs / 2));
-      next_heartbeat += std::chrono::milliseconds(saw::kHeartbeatPeriodMs);
-    }
+    heartbeat_if_due();
     if (can.Send(f, Clock::now() + std::chrono::milliseconds(20)) ==
         io::SocketCan::SendResult::kSent)
       ++sent;
@@ -166,13 +169,7 @@ int RunSawSend(const SawSendOptions& options) {
     while (Clock::now() < until && !g_stop) {
       saw::Frame in;
       can.Receive(&in, std::min(until, next_heartbeat));
-      if (Clock::now() >= next_heartbeat) {
-        saw::Frame hb = saw::Encode(saw::Heartbeat{saw::DaemonState::kReady, uptime});
-        uptime += saw::kHeartbeatPeriodMs;
-        protector.Protect(&hb);
-        can.Send(hb, next_heartbeat + std::chrono::milliseconds(saw::kHeartbeatPeriodMs / 2));
-        next_heartbeat += std::chrono::milliseconds(saw::kHeartbeatPeriodMs);
-      }
+      heartbeat_if_due();
     }
   };
 

@@ -4,25 +4,12 @@
 
 #include "io/mesh_measures.h"
 #include "perception/carcass_generator.h"
+#include "tests/support/lamb_fixture.h"
 
 namespace vb::morph {
 namespace {
 
-class CoarseAlignmentTest : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
-    carcass_ = new perception::CarcassTemplate(perception::BuildCarcassTemplate());
-    model_ = new TemplateModel(BuildTemplateModel(carcass_->mesh));
-  }
-  static void TearDownTestSuite() {
-    delete model_;
-    delete carcass_;
-  }
-  static perception::CarcassTemplate* carcass_;
-  static TemplateModel* model_;
-};
-perception::CarcassTemplate* CoarseAlignmentTest::carcass_ = nullptr;
-TemplateModel* CoarseAlignmentTest::model_ = nullptr;
+using CoarseAlignmentTest = test::LambTemplateTest;
 
 TEST_F(CoarseAlignmentTest, AlignsPostureOfPlacedAndPosedCarcasses) {
   // Several poses, scales and placements; noise as a camera would add.

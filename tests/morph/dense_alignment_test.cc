@@ -10,6 +10,7 @@
 #include "morph/cut_transfer.h"
 #include "morph/dense_association.h"
 #include "perception/carcass_generator.h"
+#include "tests/support/lamb_fixture.h"
 
 namespace vb::morph {
 namespace {
@@ -96,21 +97,7 @@ TEST(FilterAssociationsTest, KeepsConsistentPairs) {
   for (bool k : kept) EXPECT_TRUE(k);
 }
 
-class DenseAlignmentTest : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
-    carcass_ = new perception::CarcassTemplate(perception::BuildCarcassTemplate());
-    model_ = new TemplateModel(BuildTemplateModel(carcass_->mesh));
-  }
-  static void TearDownTestSuite() {
-    delete model_;
-    delete carcass_;
-  }
-  static perception::CarcassTemplate* carcass_;
-  static TemplateModel* model_;
-};
-perception::CarcassTemplate* DenseAlignmentTest::carcass_ = nullptr;
-TemplateModel* DenseAlignmentTest::model_ = nullptr;
+using DenseAlignmentTest = test::LambTemplateTest;
 
 TEST_F(DenseAlignmentTest, RefinesTheCoarseMorphAndTransfersTheCuts) {
   for (std::uint64_t seed : {1000003u, 1000006u}) {
