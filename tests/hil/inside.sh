@@ -4,6 +4,10 @@
 # printed to the console, which the host-side test parses. Usage: inside.sh VBUTCHER JOBS
 set -u
 vb=$1
+# The host's root is shared read-only; /run is the VM's own tmpfs.
+t=/run/vbhil
+mkdir -p $t
+export TMPDIR=$t
 jobs=${2:-2000}
 ip link add dev vcan0 type vcan && ip link set up vcan0
 ip link add dev vcan1 type vcan && ip link set up vcan1
@@ -21,49 +25,49 @@ wait_for() {
 }
 
 # A. E2E: jobs, every other one with faults, one saw; candump records the bus.
-candump -L vcan0 >/tmp/candump.log &
+candump -L vcan0 >$t/candump.log &
 dump=$!
-"$vb" saw-sim --can vcan0 --quiet --ids-out /tmp/accepted.txt >/tmp/sawA.log &
+"$vb" saw-sim --can vcan0 --quiet --ids-out $t/accepted.txt >$t/sawA.log &
 saw=$!
-wait_for /tmp/sawA.log listening 60
+wait_for $t/sawA.log listening 60
 "$vb" saw-send --can vcan0 --jobs "$jobs" --fault mix --fault-rate 0.5 --seed 7 --job-gap-ms 1 \
-  --ids-out /tmp/clean.txt | sed 's/^/HIL A /'
+  --ids-out $t/clean.txt | sed 's/^/HIL A /'
 # The sender has stopped: its heartbeat too, so the saw must go to safe stop.
 sleep 0.6
 kill -TERM $saw; wait $saw
 kill $dump 2>/dev/null; wait $dump 2>/dev/null
-echo "HIL A candump frames $(wc -l </tmp/candump.log)"
-grep -E "SAFE STOP|summary" /tmp/sawA.log | sed 's/^/HIL A /'
-sort /tmp/accepted.txt >/tmp/accepted.sorted
-sort /tmp/clean.txt >/tmp/clean.sorted
-echo "HIL A faulted_jobs_accepted $(comm -23 /tmp/accepted.sorted /tmp/clean.sorted | wc -l)" \
-  "clean_jobs_accepted $(comm -12 /tmp/accepted.sorted /tmp/clean.sorted | wc -l)" \
-  "clean_jobs $(wc -l </tmp/clean.sorted)"
+echo "HIL A candump frames $(wc -l <$t/candump.log)"
+grep -E "SAFE STOP|summary" $t/sawA.log | sed 's/^/HIL A /'
+sort $t/accepted.txt >$t/accepted.sorted
+sort $t/clean.txt >$t/clean.sorted
+echo "HIL A faulted_jobs_accepted $(comm -23 $t/accepted.sorted $t/clean.sorted | wc -l)" \
+  "clean_jobs_accepted $(comm -12 $t/accepted.sorted $t/clean.sorted | wc -l)" \
+  "clean_jobs $(wc -l <$t/clean.sorted)"
 
 # B. Safe stop when the sender dies in the middle of its work (kill -9).
-"$vb" saw-sim --can vcan0 --quiet >/tmp/sawB.log &
+"$vb" saw-sim --can vcan0 --quiet >$t/sawB.log &
 saw=$!
-wait_for /tmp/sawB.log listening 60
+wait_for $t/sawB.log listening 60
 "$vb" saw-send --can vcan0 --jobs 1000000 --job-gap-ms 20 >/dev/null &
 sender=$!
-wait_for /tmp/sawB.log "ACCEPT job carcass 1010 " 60   # the sender is well under way
+wait_for $t/sawB.log "ACCEPT job carcass 1010 " 60   # the sender is well under way
 kill -KILL $sender
 killed=$EPOCHREALTIME   # bash's clock, read without forking, right after the kill
 echo "HIL B killed_at_epoch_ms $(( ${killed/./} / 1000 ))"
 sleep 0.6
 kill -TERM $saw; wait $saw
-grep -E "SAFE STOP|summary" /tmp/sawB.log | sed 's/^/HIL B /'
+grep -E "SAFE STOP|summary" $t/sawB.log | sed 's/^/HIL B /'
 
 # C. Faults made by the kernel's CAN gateway between the sender (vcan0) and the saw (vcan1).
 run_c() {  # run_c <label>: 20 jobs through whatever cangw rules are set
-  "$vb" saw-sim --can vcan1 --quiet >/tmp/saw_$1.log &
+  "$vb" saw-sim --can vcan1 --quiet >$t/saw_$1.log &
   local s=$!
-  wait_for /tmp/saw_$1.log listening 60
-  "$vb" saw-send --can vcan0 --jobs 20 --job-gap-ms 5 >/tmp/send_$1.log
+  wait_for $t/saw_$1.log listening 60
+  "$vb" saw-send --can vcan0 --jobs 20 --job-gap-ms 5 >$t/send_$1.log
   sleep 0.2
   kill -TERM $s; wait $s
-  grep summary /tmp/send_$1.log | sed "s/^/HIL C $1 /"
-  grep summary /tmp/saw_$1.log | sed "s/^/HIL C $1 /"
+  grep summary $t/send_$1.log | sed "s/^/HIL C $1 /"
+  grep summary $t/saw_$1.log | sed "s/^/HIL C $1 /"
 }
 cangw -A -s vcan0 -d vcan1 -e
 run_c clean

@@ -28,8 +28,7 @@ for m in $(cat /modules.order); do insmod /modules/$m.ko || echo "vm: insmod $m 
 mkdir -p /host
 mount -t 9p -o trans=virtio,version=9p2000.L,ro hostroot /host || echo "vm: no 9p host root"
 for d in proc sys dev; do mount --bind /$d /host/$d; done
-mount -t tmpfs tmp /host/tmp
-mount -t tmpfs run /host/run
+mount -t tmpfs run /host/run  # the only writable place; the host's /tmp stays visible
 script=$(sed -n 's/.*vbtest=\([^ ]*\).*/\1/p' /proc/cmdline)
 args=$(sed -n 's/.*vbargs=\([^ ]*\).*/\1/p' /proc/cmdline | tr ',' ' ')
 echo "vm: running $script $args"
