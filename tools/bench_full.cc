@@ -18,6 +18,7 @@
 #include "morph/template_model.h"
 #include "perception/carcass_generator.h"
 #include "tools/bench_command.h"
+#include "tools/bench_stats.h"
 
 namespace vb::tools {
 namespace {
@@ -33,17 +34,12 @@ struct FullRow {
   std::vector<double> volume_rel_error, area_rel_error;                // per part
   std::vector<double> cut_angle_deg, cut_distance_mm, cut_confidence;  // per cut
   double coarse_s = 0, normals_s = 0, dense_s = 0, cuts_s = 0, total_s = 0;
+  // How well the morph fits, as the pipeline sees it (no ground truth): last dense round.
+  double kept_fraction = 0, plane_distance_rel = 0, final_cost = 0;
 };
 
 double Since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return std::nan("");
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 double Mean(const std::vector<double>& v) {
@@ -89,6 +85,12 @@ FullRow Evaluate(const morph::TemplateModel& model, const io::Annotations& annot
   if (!dense.ok) {
     row.error = dense.error;
     return row;
+  }
+  if (!dense.rounds.empty()) {
+    const morph::DenseRound& last = dense.rounds.back();
+    row.kept_fraction = static_cast<double>(last.kept) / std::max(1, last.associated);
+    row.plane_distance_rel = last.mean_plane_distance;
+    row.final_cost = last.deformation.final_cost;
   }
   auto phase = std::chrono::steady_clock::now();
   const double size = coarse.template_to_target.scale;
@@ -292,7 +294,7 @@ int RunFullBench(const BenchOptions& options) {
     csv << ",volume_rel_err_" << part << ",area_rel_err_" << part;
   for (const io::CutAnnotation& cut : carcass.annotations.cuts)
     csv << ",angle_deg_" << cut.name << ",distance_mm_" << cut.name << ",confidence_" << cut.name;
-  csv << ",coarse_s,normals_s,dense_s,cuts_s,total_s\n";
+  csv << ",kept_fraction,plane_distance_rel,final_cost,coarse_s,normals_s,dense_s,cuts_s,total_s\n";
   for (const FullRow& r : rows) {
     csv << r.input << ',' << r.sigma_mm << ',' << r.index << ',' << r.ok << ",\"" << r.error
         << "\"," << r.coarse_max_rel << ',' << r.coarse_mean_rel << ',' << r.max_rel << ','
@@ -310,7 +312,8 @@ int RunFullBench(const BenchOptions& options) {
       else
         csv << ",,,";
     }
-    csv << ',' << r.coarse_s << ',' << r.normals_s << ',' << r.dense_s << ',' << r.cuts_s << ','
+    csv << ',' << r.kept_fraction << ',' << r.plane_distance_rel << ',' << r.final_cost << ','
+        << r.coarse_s << ',' << r.normals_s << ',' << r.dense_s << ',' << r.cuts_s << ','
         << r.total_s << '\n';
   }
   std::filesystem::path stem = options.csv;
