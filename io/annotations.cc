@@ -1,62 +1,13 @@
 #include "io/annotations.h"
 
-#include <yaml-cpp/yaml.h>
-
 #include <cmath>
 #include <fstream>
 #include <set>
 
 #include "io/error.h"
+#include "io/yaml_reader.h"
 
 namespace vb::io {
-namespace {
-
-class YamlReader {
- public:
-  explicit YamlReader(std::string source) : source_(std::move(source)) {}
-
-  [[noreturn]] void Fail(const YAML::Node& node, const std::string& key,
-                         const std::string& message) const {
-    const std::string line =
-        node.IsDefined() && node.Mark().line >= 0 ? std::to_string(node.Mark().line + 1) : "?";
-    throw InputError(source_ + ":" + line + ": " + key + ": " + message);
-  }
-
-  YAML::Node Child(const YAML::Node& parent, const std::string& name,
-                   const std::string& key) const {
-    if (!parent.IsMap()) Fail(parent, key, "expected a mapping");
-    YAML::Node child = parent[name];
-    if (!child.IsDefined()) Fail(parent, key + "." + name, "missing");
-    return child;
-  }
-
-  template <typename T>
-  T Scalar(const YAML::Node& node, const std::string& key) const {
-    if (!node.IsScalar()) Fail(node, key, "expected a single value");
-    try {
-      return node.as<T>();
-    } catch (const YAML::Exception&) {
-      Fail(node, key, "cannot read '" + node.Scalar() + "'");
-    }
-  }
-
-  double Finite(const YAML::Node& node, const std::string& key) const {
-    const double value = Scalar<double>(node, key);
-    if (!std::isfinite(value)) Fail(node, key, "value '" + node.Scalar() + "' is not finite");
-    return value;
-  }
-
-  Eigen::Vector3d Vector3(const YAML::Node& node, const std::string& key) const {
-    if (!node.IsSequence() || node.size() != 3) Fail(node, key, "expected a list of 3 numbers");
-    return {Finite(node[0], key + "[0]"), Finite(node[1], key + "[1]"),
-            Finite(node[2], key + "[2]")};
-  }
-
- private:
-  std::string source_;
-};
-
-}  // namespace
 
 std::vector<Plane> Annotations::planes() const {
   std::vector<Plane> planes;
@@ -66,26 +17,9 @@ std::vector<Plane> Annotations::planes() const {
 
 Annotations LoadAnnotations(const std::filesystem::path& path) {
   const std::string source = path.string();
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(source);
-  } catch (const YAML::BadFile&) {
-    throw InputError(source + ": cannot open annotation file");
-  } catch (const YAML::ParserException& e) {
-    throw InputError(source + ":" + std::to_string(e.mark.line + 1) + ": not valid YAML: " + e.msg);
-  }
+  const YAML::Node root = YamlReader::LoadFile(path, "annotation file");
   const YamlReader r(source);
-  if (!root.IsMap()) throw InputError(source + ": expected a YAML mapping at the top level");
-  const auto format = r.Scalar<std::string>(r.Child(root, "format", ""), "format");
-  if (format != "vbutcher-annotations") {
-    r.Fail(root["format"], "format", "is '" + format + "', expected 'vbutcher-annotations'");
-  }
-  const int version = r.Scalar<int>(r.Child(root, "version", ""), "version");
-  if (version != Annotations::kFormatVersion) {
-    r.Fail(root["version"], "version",
-           std::to_string(version) + " is not supported; this build reads version " +
-               std::to_string(Annotations::kFormatVersion));
-  }
+  r.ExpectFormat(root, "vbutcher-annotations", Annotations::kFormatVersion);
   Annotations a;
   a.template_name = r.Scalar<std::string>(r.Child(root, "template", ""), "template");
   a.vertex_count = r.Scalar<int>(r.Child(root, "vertex_count", ""), "vertex_count");

@@ -1,4 +1,5 @@
 #include "tools/bench_command.h"
+#include "tools/bench_stats.h"
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -31,13 +32,6 @@ struct Row {
   double skeleton_s = 0, association_s = 0, deformation_s = 0, total_s = 0;
   int template_features = 0, target_features = 0, pairs = 0;
 };
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return std::nan("");
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 // True position of each template feature in the target: the mean of its support vertices there.
 Eigen::Matrix3Xd TrueFeaturePositions(const Eigen::Matrix3Xd& features,

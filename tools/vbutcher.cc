@@ -7,6 +7,7 @@
 #include "io/error.h"
 #include "perception/synthetic_set.h"
 #include "tools/bench_command.h"
+#include "tools/capture_command.h"
 #include "tools/lcm_command.h"
 #include "tools/morph_command.h"
 #include "tools/saw_command.h"
@@ -85,6 +86,58 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   bench_cmd->add_option("--csv", bench.csv, "One row per morph (default bench_<stage>.csv)");
 
+  vb::tools::VirtualRigCommandOptions virtual_rig;
+  CLI::App* virtual_rig_cmd = app.add_subcommand(
+      "virtual-rig", "Write a virtual camera rig with a synthetic carcass on the hook");
+  virtual_rig_cmd->add_option("--out", virtual_rig.out_dir, "Output directory")->required();
+  virtual_rig_cmd->add_option("--cameras", virtual_rig.cameras, "Cameras in the ring")
+      ->capture_default_str();
+  virtual_rig_cmd->add_option("--radius-m", virtual_rig.radius_m, "Ring radius")
+      ->check(CLI::Range(0.5, 5.0))
+      ->capture_default_str();
+  virtual_rig_cmd->add_option("--seed", virtual_rig.seed, "Carcass pose seed")
+      ->capture_default_str();
+  virtual_rig_cmd->add_option("--fps", virtual_rig.fps, "Frame rate")
+      ->check(CLI::Range(1, 60))
+      ->capture_default_str();
+  virtual_rig_cmd->add_flag("--no-noise", virtual_rig.no_noise, "Noise-free depth");
+
+  vb::tools::CaptureCommandOptions capture;
+  CLI::App* capture_cmd = app.add_subcommand(
+      "capture", "Capture one frame set from the rig's OpenNI2 cameras and fuse it into a cloud");
+  capture_cmd->add_option("--rig", capture.rig_path, "Rig calibration (vbutcher-rig YAML)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  capture_cmd->add_option("--scene", capture.scene_path, "Virtual scene (for the virtual rig)")
+      ->check(CLI::ExistingFile);
+  capture_cmd->add_option("--out", capture.out_path, "Fused cloud (.ply, .pcd, .xyz)")->required();
+  capture_cmd->add_option("--timeout", capture.timeout_s, "Seconds to wait for frames")
+      ->capture_default_str();
+  capture_cmd->add_option("--voxel-mm", capture.voxel_mm, "Voxel size")->capture_default_str();
+  capture_cmd->add_option("--max-points", capture.max_points, "Fused-cloud budget")
+      ->capture_default_str();
+
+  vb::tools::RecordCommandOptions record;
+  CLI::App* record_cmd = app.add_subcommand(
+      "record", "Record every camera of the rig to .oni files, with a playback calibration");
+  record_cmd->add_option("--rig", record.rig_path, "Rig calibration")
+      ->required()
+      ->check(CLI::ExistingFile);
+  record_cmd->add_option("--scene", record.scene_path, "Virtual scene (for the virtual rig)")
+      ->check(CLI::ExistingFile);
+  record_cmd->add_option("--out", record.out_dir, "Output directory: SERIAL.oni, rig.yaml")
+      ->required();
+  record_cmd->add_option("--seconds", record.seconds, "Length")->capture_default_str();
+
+  vb::tools::CaptureBenchOptions capture_bench;
+  CLI::App* capture_bench_cmd = bench_cmd->add_subcommand(
+      "capture", "Capture + fusion time per frame set, and memory over the run");
+  capture_bench_cmd->add_option("--scene", capture_bench.scene_path,
+                                "Virtual scene (default: a 4-camera virtual rig)");
+  capture_bench_cmd->add_option("--sets", capture_bench.sets, "Frame sets")->capture_default_str();
+  capture_bench_cmd->add_option("--csv", capture_bench.csv, "One row per frame set")
+      ->capture_default_str();
+
   vb::tools::SawSimOptions saw_sim;
   CLI::App* saw_sim_cmd = app.add_subcommand(
       "saw-sim", "Reference band-saw controller on a CAN interface (checks, acks, safe stop)");
@@ -140,7 +193,11 @@ int main(int argc, char** argv) {
       std::fputs(vb::perception::FormatSummary(summary).c_str(), stdout);
     }
     if (morph_cmd->parsed()) return vb::tools::RunMorphCommand(morph);
+    if (capture_bench_cmd->parsed()) return vb::tools::RunCaptureBench(capture_bench);
     if (bench_cmd->parsed()) return vb::tools::RunBenchCommand(bench);
+    if (virtual_rig_cmd->parsed()) return vb::tools::RunVirtualRig(virtual_rig);
+    if (capture_cmd->parsed()) return vb::tools::RunCapture(capture);
+    if (record_cmd->parsed()) return vb::tools::RunRecord(record);
     if (saw_sim_cmd->parsed()) return vb::tools::RunSawSim(saw_sim);
     if (saw_send_cmd->parsed()) return vb::tools::RunSawSend(saw_send);
     if (lcm_publish_cmd->parsed()) return vb::tools::RunLcmPublish(lcm_publish);

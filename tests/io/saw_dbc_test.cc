@@ -3,9 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <map>
-#include <regex>
 #include <string>
 
 #include "io/saw_protocol.h"
@@ -23,24 +23,26 @@ struct Message {
   std::map<std::string, Signal> signals;
 };
 
+// Reads the two DBC statements the codec has to agree with: messages (BO_) and signals (SG_).
+// sscanf rather than std::regex: GCC 12's <regex> trips -Wmaybe-uninitialized under ASan -O3.
 std::map<std::uint32_t, Message> LoadDbc() {
   std::ifstream in(VB_SOURCE_DIR "/config/saw_can.dbc");
   EXPECT_TRUE(in.good());
-  const std::regex bo(R"(^BO_ (\d+) (\w+): 8 \w+)");
-  const std::regex sg(
-      R"(^ SG_ (\w+) : (\d+)\|(\d+)@1([+-]) \(([-\d.eE]+),([-\d.eE]+)\) \[([-\d.eE]+)\|([-\d.eE]+)\])");
   std::map<std::uint32_t, Message> out;
   std::uint32_t current = 0;
   std::string line;
-  std::smatch m;
   while (std::getline(in, line)) {
-    if (std::regex_search(line, m, bo)) {
-      current = static_cast<std::uint32_t>(std::stoul(m[1]));
-      out[current].name = m[2];
-    } else if (std::regex_search(line, m, sg)) {
-      Signal s{std::stoi(m[2]), std::stoi(m[3]), m[4] == "-",    std::stod(m[5]),
-               std::stod(m[6]), std::stod(m[7]), std::stod(m[8])};
-      out[current].signals[m[1]] = s;
+    unsigned id = 0;
+    char name[64] = {}, sign = 0;
+    Signal s;
+    if (std::sscanf(line.c_str(), "BO_ %u %63[A-Za-z0-9_]: 8", &id, name) == 2) {
+      current = id;
+      out[current].name = name;
+    } else if (std::sscanf(line.c_str(), " SG_ %63[A-Za-z0-9_] : %d|%d@1%c (%lf,%lf) [%lf|%lf]",
+                           name, &s.start, &s.length, &sign, &s.factor, &s.offset, &s.min,
+                           &s.max) == 8) {
+      s.is_signed = sign == '-';
+      out[current].signals[name] = s;
     }
   }
   return out;

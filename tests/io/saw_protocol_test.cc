@@ -2,26 +2,11 @@
 
 #include <gtest/gtest.h>
 
-#include <cstdlib>
-#include <new>
 #include <random>
 #include <vector>
 
 #include "io/saw_controller.h"
-
-// Counts heap allocations, to show that encoding a job allocates nothing. GCC cannot see
-// that the replaced operator new below is malloc-based.
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-namespace {
-long g_allocations = 0;
-}
-void* operator new(std::size_t n) {
-  ++g_allocations;
-  if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+#include "tests/support/allocation_counter.h"
 
 namespace vb::io::saw {
 namespace {
@@ -166,9 +151,9 @@ TEST(SawProtocolTest, EncodingAJobAllocatesNothing) {
   const Job job = MakeJob(7, 1, kMaxCuts, kMaxWaypoints);
   Protector protector;
   std::array<Frame, kMaxJobFrames> frames;
-  const long before = g_allocations;
+  const test::AllocationScope allocations;
   const int n = EncodeJob(job, &protector, &frames);
-  EXPECT_EQ(g_allocations, before);
+  EXPECT_EQ(allocations.count(), 0);
   EXPECT_EQ(n, kMaxJobFrames);
 }
 

@@ -1,0 +1,84 @@
+#include "io/yaml_reader.h"
+
+#include <cmath>
+#include <sstream>
+
+namespace vb::io {
+
+YAML::Node YamlReader::LoadFile(const std::filesystem::path& path, const std::string& what) {
+  const std::string source = path.string();
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(source);
+  } catch (const YAML::BadFile&) {
+    throw InputError(source + ": cannot open " + what);
+  } catch (const YAML::ParserException& e) {
+    throw InputError(source + ":" + std::to_string(e.mark.line + 1) + ": not valid YAML: " + e.msg);
+  }
+  if (!root.IsMap()) throw InputError(source + ": expected a YAML mapping at the top level");
+  return root;
+}
+
+void YamlReader::Fail(const YAML::Node& node, const std::string& key,
+                      const std::string& message) const {
+  const std::string line =
+      node.IsDefined() && node.Mark().line >= 0 ? std::to_string(node.Mark().line + 1) : "?";
+  throw InputError(source_ + ":" + line + ": " + key + ": " + message);
+}
+
+YAML::Node YamlReader::Child(const YAML::Node& parent, const std::string& name,
+                             const std::string& key) const {
+  if (!parent.IsMap()) Fail(parent, key, "expected a mapping");
+  YAML::Node child = parent[name];
+  const std::string child_key = key.empty() ? name : key + "." + name;
+  if (!child.IsDefined()) Fail(parent, child_key, "missing");
+  return child;
+}
+
+double YamlReader::Finite(const YAML::Node& node, const std::string& key) const {
+  const double value = Scalar<double>(node, key);
+  if (!std::isfinite(value)) Fail(node, key, "value '" + node.Scalar() + "' is not finite");
+  return value;
+}
+
+double YamlReader::InRange(const YAML::Node& node, const std::string& key, double lo,
+                           double hi) const {
+  const double value = Finite(node, key);
+  if (value < lo || value > hi) {
+    std::ostringstream range;
+    range << "value " << node.Scalar() << " is outside [" << lo << ", " << hi << "]";
+    Fail(node, key, range.str());
+  }
+  return value;
+}
+
+int YamlReader::IntInRange(const YAML::Node& node, const std::string& key, int lo,
+                           int hi) const {
+  const long long value = Scalar<long long>(node, key);
+  if (value < lo || value > hi) {
+    Fail(node, key,
+         "value " + node.Scalar() + " is outside [" + std::to_string(lo) + ", " +
+             std::to_string(hi) + "]");
+  }
+  return static_cast<int>(value);
+}
+
+Eigen::Vector3d YamlReader::Vector3(const YAML::Node& node, const std::string& key) const {
+  if (!node.IsSequence() || node.size() != 3) Fail(node, key, "expected a list of 3 numbers");
+  return {Finite(node[0], key + "[0]"), Finite(node[1], key + "[1]"),
+          Finite(node[2], key + "[2]")};
+}
+
+void YamlReader::ExpectFormat(const YAML::Node& root, const std::string& format,
+                              int version) const {
+  const auto found = Scalar<std::string>(Child(root, "format", ""), "format");
+  if (found != format) Fail(root["format"], "format", "is '" + found + "', expected '" + format + "'");
+  const int found_version = Scalar<int>(Child(root, "version", ""), "version");
+  if (found_version != version) {
+    Fail(root["version"], "version",
+         std::to_string(found_version) + " is not supported; this build reads version " +
+             std::to_string(version));
+  }
+}
+
+}  // namespace vb::io

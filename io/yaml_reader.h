@@ -1,0 +1,56 @@
+#pragma once
+
+#include <yaml-cpp/yaml.h>
+
+#include <Eigen/Core>
+#include <filesystem>
+#include <string>
+
+#include "io/error.h"
+
+namespace vb::io {
+
+/// Reads a YAML file and turns every problem into an InputError naming the file, the line
+/// and the key, e.g. "rig.yaml:12: cameras[1].intrinsics.fx: cannot read 'abc'". Keys are
+/// given by the caller as dotted paths so nested lists read naturally.
+class YamlReader {
+ public:
+  explicit YamlReader(std::string source) : source_(std::move(source)) {}
+
+  /// Parses @p path; @p what names the kind of file in the message ("annotation file").
+  /// @throws InputError when the file cannot be opened or is not valid YAML.
+  static YAML::Node LoadFile(const std::filesystem::path& path, const std::string& what);
+
+  [[noreturn]] void Fail(const YAML::Node& node, const std::string& key,
+                         const std::string& message) const;
+
+  /// The child @p name of mapping @p parent (whose own key is @p key).
+  YAML::Node Child(const YAML::Node& parent, const std::string& name,
+                   const std::string& key) const;
+
+  template <typename T>
+  T Scalar(const YAML::Node& node, const std::string& key) const {
+    if (!node.IsScalar()) Fail(node, key, "expected a single value");
+    try {
+      return node.as<T>();
+    } catch (const YAML::Exception&) {
+      Fail(node, key, "cannot read '" + node.Scalar() + "'");
+    }
+  }
+
+  double Finite(const YAML::Node& node, const std::string& key) const;
+  /// A finite number in [lo, hi].
+  double InRange(const YAML::Node& node, const std::string& key, double lo, double hi) const;
+  /// A whole number in [lo, hi].
+  int IntInRange(const YAML::Node& node, const std::string& key, int lo, int hi) const;
+  Eigen::Vector3d Vector3(const YAML::Node& node, const std::string& key) const;
+  /// Checks @p format and @p version keys at the top of @p root.
+  void ExpectFormat(const YAML::Node& root, const std::string& format, int version) const;
+
+  const std::string& source() const { return source_; }
+
+ private:
+  std::string source_;
+};
+
+}  // namespace vb::io

@@ -1,0 +1,108 @@
+#pragma once
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "io/triangle_mesh.h"
+#include "perception/rig_calibration.h"
+
+namespace vb::perception {
+
+/// Limits and parameters of multi-camera fusion. Every buffer is sized from these once.
+struct FusionOptions {
+  /// Region of interest around the hook, rig frame (m): everything else is cropped.
+  Eigen::AlignedBox3d roi{Eigen::Vector3d(-0.6, -0.6, -1.6), Eigen::Vector3d(0.6, 0.6, 0.1)};
+  double voxel_m = 0.006;        ///< voxel-grid cell size
+  int max_points = 60000;        ///< fused-cloud budget (voxels kept)
+  double min_depth_m = 0.3;      ///< readings nearer than this are ignored
+  double max_depth_m = 4.0;      ///< and farther than this
+  /// Statistical outlier removal: mean distance to the sor_k nearest fused points within
+  /// the 3 x 3 x 3 voxel block; points beyond mean + sor_std_ratio * std are removed.
+  int sor_k = 6;
+  double sor_std_ratio = 2.0;
+  /// Normals: principal axes of the fused points within this many voxels (Chebyshev).
+  int normal_radius_voxels = 2;
+  int min_normal_neighbours = 4;
+};
+
+/// One depth image handed to fusion: row major, millimetres, 0 = no reading.
+struct DepthView {
+  int camera = 0;  ///< index into the rig's cameras
+  const std::uint16_t* depth_mm = nullptr;
+  int width = 0;
+  int height = 0;
+};
+
+/// The fused cloud, rig frame. Buffers have the budget's capacity; the first size() columns
+/// are valid. Normals point outward (towards the cameras that saw the point).
+struct FusedCloud {
+  Eigen::Matrix3Xd points;
+  Eigen::Matrix3Xd normals;
+  int size = 0;
+
+  /// A copy holding just the valid points (allocates; for tools and the morph's input).
+  io::PointCloud ToPointCloud() const;
+};
+
+/// What one Fuse() call did, for status and benchmarks.
+struct FusionStats {
+  int images = 0;             ///< depth images used
+  int skipped_images = 0;     ///< images refused (unknown camera or wrong size)
+  long valid_readings = 0;    ///< pixels with a depth in range
+  long roi_readings = 0;      ///< of those, inside the region of interest
+  int voxels = 0;             ///< occupied voxels
+  int outliers = 0;           ///< removed by the statistical filter
+  int no_normal = 0;          ///< removed for too few neighbours to fit a normal
+  int pixel_stride = 1;       ///< > 1 when the budget forced decimation
+  bool truncated = false;     ///< still over budget at the coarsest decimation
+};
+
+/// Fuses depth images of a calibrated rig into one cloud within a fixed memory budget:
+/// back-projection through each camera's intrinsics and X_RigCam, crop to the region of
+/// interest, voxel-grid averaging, statistical outlier removal, normals oriented towards the
+/// cameras. All buffers are allocated by the constructor; Fuse() allocates nothing. A frame
+/// set that would exceed the budget is decimated (every 2nd, 4th, 8th pixel), never grows
+/// memory. Not thread safe: owns its scratch.
+class Fusion {
+ public:
+  /// @throws InputError when the options are unusable (voxel size, budget, ROI too large
+  ///   for the voxel grid) or the rig has a camera larger than @p max_width x @p max_height.
+  Fusion(const RigCalibration& rig, const FusionOptions& options);
+
+  /// Fuses @p images into @p out (which must come from MakeOutput()).
+  FusionStats Fuse(std::span<const DepthView> images, FusedCloud* out);
+
+  /// An output cloud with this fusion's capacity.
+  FusedCloud MakeOutput() const;
+
+  const FusionOptions& options() const { return options_; }
+
+ private:
+  struct Camera {
+    Eigen::Isometry3d X_RigCam;
+    int width = 0, height = 0;
+    std::vector<float> ray_x, ray_y;  // (u - cx) / fx and (v - cy) / fy per pixel
+  };
+  bool Bin(std::span<const DepthView> images, int stride, FusionStats* stats);
+  int Find(std::uint64_t key) const;
+  std::uint64_t Key(const Eigen::Vector3d& p_Rig) const;
+
+  FusionOptions options_;
+  std::vector<Camera> cameras_;
+  // Open-addressing hash from voxel key to dense voxel index; -1 is empty.
+  std::vector<std::int32_t> table_;
+  std::uint64_t table_mask_ = 0;
+  // Dense per-voxel accumulators, at most max_points of them.
+  std::vector<std::uint64_t> keys_;
+  Eigen::Matrix3Xd sum_;        // sum of points
+  Eigen::Matrix3Xd view_sum_;   // sum of unit directions from point to camera
+  std::vector<int> count_;
+  std::vector<float> mean_knn_;  // outlier statistic per voxel
+  std::vector<std::uint8_t> keep_;
+  Eigen::Matrix3Xd centroid_;
+  int num_voxels_ = 0;
+};
+
+}  // namespace vb::perception

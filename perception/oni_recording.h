@@ -1,0 +1,32 @@
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "perception/rig_calibration.h"
+#include "perception/rig_capture.h"
+
+namespace vb::perception {
+
+struct RecordOptions {
+  std::filesystem::path out_dir;
+  double seconds = 5.0;
+};
+
+struct RecordSummary {
+  std::filesystem::path rig_path;            ///< the playback calibration written
+  std::vector<std::filesystem::path> files;  ///< one .oni per camera that was streaming
+  std::vector<std::uint64_t> frames_seen;    ///< frames read per camera while recording
+};
+
+/// Records every camera of @p rig for @p options.seconds with OpenNI2's own recorder (one
+/// out_dir/SERIAL.oni per camera) and writes out_dir/rig.yaml: the same calibration with each
+/// camera's URI pointing at its recording, so replaying a line is running with that file.
+/// Cameras that are not streaming are left out of both.
+/// @throws std::runtime_error when nothing could be recorded or a file cannot be written.
+RecordSummary RecordOni(const RigCalibration& rig, const CaptureOptions& capture,
+                        const RecordOptions& options);
+
+}  // namespace vb::perception

@@ -1,0 +1,319 @@
+#include "perception/rig_capture.h"
+
+#include <OpenNI.h>
+#include <time.h>
+#include <xxhash.h>
+
+#include <algorithm>
+#include <cstring>
+#include <mutex>
+#include <stdexcept>
+
+namespace vb::perception {
+namespace {
+
+// OpenNI2 is a process-wide singleton: initialised with the first capture, shut down with
+// the last.
+std::mutex g_openni_mutex;
+int g_openni_users = 0;
+
+void AcquireOpenNi() {
+  std::lock_guard<std::mutex> lock(g_openni_mutex);
+  if (g_openni_users == 0 && openni::OpenNI::initialize() != openni::STATUS_OK) {
+    throw std::runtime_error(std::string("OpenNI2 failed to initialise: ") +
+                             openni::OpenNI::getExtendedError());
+  }
+  ++g_openni_users;
+}
+
+void ReleaseOpenNi() {
+  std::lock_guard<std::mutex> lock(g_openni_mutex);
+  if (--g_openni_users == 0) openni::OpenNI::shutdown();
+}
+
+}  // namespace
+
+std::int64_t MonotonicNs() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1000000000 + ts.tv_nsec;
+}
+
+bool UsableForFusion(const RigCapture& capture, int camera) {
+  const CameraStatus& s = capture.status(camera);
+  return s.frames > 0 && (s.health == CameraHealth::kOk || s.health == CameraHealth::kStarting);
+}
+
+bool FrameSetReady(const RigCapture& capture, std::span<const std::uint64_t> since) {
+  int healthy = 0;
+  for (int c = 0; c < capture.num_cameras(); ++c) {
+    if (!UsableForFusion(capture, c)) continue;
+    ++healthy;
+    if (capture.frame(c).sequence <= since[static_cast<std::size_t>(c)]) return false;
+  }
+  return healthy > 0;
+}
+
+const char* ToString(CameraHealth health) {
+  switch (health) {
+    case CameraHealth::kStarting:
+      return "starting";
+    case CameraHealth::kOk:
+      return "ok";
+    case CameraHealth::kFrozen:
+      return "frozen";
+    case CameraHealth::kMissing:
+      return "missing";
+    case CameraHealth::kLowValid:
+      return "low_valid";
+  }
+  return "?";
+}
+
+struct RigCapture::Camera {
+  CameraCalibration calibration;
+  openni::Device device;
+  openni::VideoStream depth;
+  openni::VideoStream color;
+  bool open = false;
+  bool streaming = false;
+  DepthFrame frame;
+  CameraStatus status;
+  std::int64_t last_frame_ns = 0;
+  std::int64_t opened_ns = 0;
+  std::int64_t next_recovery_ns = 0;
+  bool frame_since_start = false;  // a frame arrived since the stream was (re)started
+  int recovery_step = 0;  // 0: restart the stream next, then reopen the device
+};
+
+RigCapture::RigCapture(const RigCalibration& rig, const CaptureOptions& options)
+    : options_(options) {
+  AcquireOpenNi();
+  for (const CameraCalibration& cal : rig.cameras) {
+    auto cam = std::make_unique<Camera>();
+    cam->calibration = cal;
+    const std::size_t pixels =
+        static_cast<std::size_t>(cal.intrinsics.width) * cal.intrinsics.height;
+    cam->frame.depth_mm.assign(pixels, 0);
+    cam->frame.width = cal.intrinsics.width;
+    cam->frame.height = cal.intrinsics.height;
+    cameras_.push_back(std::move(cam));
+  }
+  ready_.reserve(cameras_.size());
+  ready_camera_.reserve(cameras_.size());
+  for (auto& cam : cameras_) Open(cam.get());
+}
+
+RigCapture::~RigCapture() {
+  for (auto& cam : cameras_) Close(cam.get());
+  cameras_.clear();
+  ReleaseOpenNi();
+}
+
+const CameraCalibration& RigCapture::calibration(int camera) const {
+  return cameras_.at(static_cast<std::size_t>(camera))->calibration;
+}
+const DepthFrame& RigCapture::frame(int camera) const {
+  return cameras_.at(static_cast<std::size_t>(camera))->frame;
+}
+const CameraStatus& RigCapture::status(int camera) const {
+  return cameras_.at(static_cast<std::size_t>(camera))->status;
+}
+openni::VideoStream* RigCapture::depth_stream(int camera) {
+  Camera& cam = *cameras_.at(static_cast<std::size_t>(camera));
+  return cam.streaming ? &cam.depth : nullptr;
+}
+
+void RigCapture::SetHealth(Camera* cam, CameraHealth health, std::int64_t now_ns,
+                           const char* why) {
+  if (cam->status.health != health) {
+    cam->status.health = health;
+    cam->status.health_since_ns = now_ns;
+  }
+  if (why != nullptr) cam->status.last_error = why;
+}
+
+void RigCapture::Open(Camera* cam) {
+  const std::int64_t now = MonotonicNs();
+  cam->next_recovery_ns = now + static_cast<std::int64_t>(options_.recovery_period_ms) * 1000000;
+  cam->recovery_step = 0;
+  const CameraCalibration& cal = cam->calibration;
+  openni::Status rc = openni::STATUS_ERROR;
+  if (!cal.uri.empty()) {
+    rc = cam->device.open(cal.uri.c_str());
+  } else {
+    // Find the device by serial number.
+    openni::Array<openni::DeviceInfo> devices;
+    openni::OpenNI::enumerateDevices(&devices);
+    for (int i = 0; i < devices.getSize() && rc != openni::STATUS_OK; ++i) {
+      if (cam->device.open(devices[i].getUri()) != openni::STATUS_OK) continue;
+      char serial[64] = {};
+      int size = sizeof(serial);
+      if (cam->device.getProperty(ONI_DEVICE_PROPERTY_SERIAL_NUMBER, serial, &size) ==
+              openni::STATUS_OK &&
+          cal.serial == serial) {
+        rc = openni::STATUS_OK;
+      } else {
+        cam->device.close();
+      }
+    }
+  }
+  if (rc != openni::STATUS_OK) {
+    SetHealth(cam, CameraHealth::kMissing, now, "cannot open the device");
+    return;
+  }
+  cam->open = true;
+  if (cam->depth.create(cam->device, openni::SENSOR_DEPTH) != openni::STATUS_OK) {
+    SetHealth(cam, CameraHealth::kMissing, now, "the device has no depth sensor");
+    Close(cam);
+    return;
+  }
+  openni::VideoMode mode;
+  mode.setPixelFormat(openni::PIXEL_FORMAT_DEPTH_1_MM);
+  mode.setResolution(cal.intrinsics.width, cal.intrinsics.height);
+  mode.setFps(options_.fps);
+  // A playback device keeps its recorded mode; a live one must take the calibrated one.
+  if (cam->depth.setVideoMode(mode) != openni::STATUS_OK) {
+    const openni::VideoMode actual = cam->depth.getVideoMode();
+    if (actual.getResolutionX() != cal.intrinsics.width ||
+        actual.getResolutionY() != cal.intrinsics.height) {
+      SetHealth(cam, CameraHealth::kMissing, now, "the device cannot give the calibrated resolution");
+      Close(cam);
+      return;
+    }
+  }
+  if (options_.register_depth_to_color && cam->device.hasSensor(openni::SENSOR_COLOR) &&
+      cam->device.isImageRegistrationModeSupported(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR)) {
+    cam->device.setImageRegistrationMode(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR);
+    if (cam->color.create(cam->device, openni::SENSOR_COLOR) == openni::STATUS_OK)
+      cam->color.start();
+  }
+  if (cam->depth.start() != openni::STATUS_OK) {
+    SetHealth(cam, CameraHealth::kMissing, now, "the depth stream does not start");
+    Close(cam);
+    return;
+  }
+  cam->streaming = true;
+  cam->frame_since_start = false;
+  cam->opened_ns = now;
+  cam->last_frame_ns = now;
+  cam->status.identical_run = 0;
+  cam->status.low_valid_run = 0;
+  SetHealth(cam, CameraHealth::kStarting, now, "");
+}
+
+void RigCapture::Close(Camera* cam) {
+  if (cam->color.isValid()) {
+    cam->color.stop();
+    cam->color.destroy();
+  }
+  if (cam->depth.isValid()) {
+    cam->depth.stop();
+    cam->depth.destroy();
+  }
+  if (cam->open) cam->device.close();
+  cam->open = false;
+  cam->streaming = false;
+}
+
+void RigCapture::UpdateHealth(Camera* cam, std::int64_t now) {
+  CameraStatus& s = cam->status;
+  const std::int64_t period_ns = 1000000000 / std::max(1, options_.fps);
+  const std::int64_t silence_limit = options_.frozen_periods * period_ns;
+  if (cam->streaming) {
+    if (now - cam->last_frame_ns > silence_limit) {
+      SetHealth(cam, s.frames == 0 ? CameraHealth::kMissing : CameraHealth::kFrozen, now,
+                s.frames == 0 ? "no frame since the stream started" : "no new frame");
+    } else if (s.identical_run >= options_.frozen_periods) {
+      SetHealth(cam, CameraHealth::kFrozen, now, "identical frames");
+    } else if (s.low_valid_run >= options_.frozen_periods) {
+      SetHealth(cam, CameraHealth::kLowValid, now, "too few pixels with depth");
+    } else if (cam->frame_since_start) {
+      SetHealth(cam, CameraHealth::kOk, now, nullptr);
+    }
+  }
+  const bool broken = s.health == CameraHealth::kFrozen || s.health == CameraHealth::kMissing;
+  if (!broken) {
+    cam->recovery_step = 0;
+    cam->next_recovery_ns = now + static_cast<std::int64_t>(options_.recovery_period_ms) * 1000000;
+    return;
+  }
+  if (now < cam->next_recovery_ns) return;
+  // Recovery in steps: restart the stream once, then reopen the device (and keep trying).
+  if (cam->streaming && cam->recovery_step == 0) {
+    cam->depth.stop();
+    cam->depth.start();
+    cam->frame_since_start = false;
+    ++s.stream_restarts;
+    cam->recovery_step = 1;
+    cam->last_frame_ns = now;
+    s.identical_run = 0;
+    cam->next_recovery_ns = now + static_cast<std::int64_t>(options_.recovery_period_ms) * 1000000;
+    return;
+  }
+  Close(cam);
+  ++s.device_reopens;
+  const CameraHealth before = s.health;
+  Open(cam);
+  if (cam->streaming) SetHealth(cam, before, now, nullptr);  // healthy only on a good frame
+  cam->recovery_step = 1;
+}
+
+int RigCapture::Poll() {
+  ready_.clear();
+  ready_camera_.clear();
+  for (std::size_t i = 0; i < cameras_.size(); ++i) {
+    if (!cameras_[i]->streaming) continue;
+    ready_.push_back(&cameras_[i]->depth);
+    ready_camera_.push_back(static_cast<int>(i));
+  }
+  int fresh = 0;
+  if (!ready_.empty()) {
+    int index = -1;
+    const openni::Status rc = openni::OpenNI::waitForAnyStream(
+        ready_.data(), static_cast<int>(ready_.size()), &index, options_.wait_timeout_ms);
+    if (rc == openni::STATUS_OK && index >= 0 && index < static_cast<int>(ready_.size())) {
+      // waitForAnyStream names one ready stream; the others may be ready too, so take the
+      // named one now and the rest on the next Poll (each call costs microseconds).
+      Camera& cam = *cameras_[static_cast<std::size_t>(ready_camera_[static_cast<std::size_t>(index)])];
+      openni::VideoFrameRef ref;
+      if (cam.depth.readFrame(&ref) == openni::STATUS_OK && ref.isValid()) {
+        DepthFrame& f = cam.frame;
+        const std::int64_t now = MonotonicNs();
+        if (ref.getWidth() != f.width || ref.getHeight() != f.height ||
+            ref.getDataSize() < static_cast<int>(f.depth_mm.size() * 2)) {
+          cam.status.last_error = "frame size differs from the calibration";
+        } else {
+          const auto* src = static_cast<const std::uint16_t*>(ref.getData());
+          const int stride_px = ref.getStrideInBytes() / 2;
+          for (int v = 0; v < f.height; ++v)
+            std::memcpy(&f.depth_mm[static_cast<std::size_t>(v) * f.width],
+                        src + static_cast<std::ptrdiff_t>(v) * stride_px,
+                        static_cast<std::size_t>(f.width) * 2);
+          const std::uint64_t hash = XXH3_64bits(f.depth_mm.data(), f.depth_mm.size() * 2);
+          cam.status.identical_run = (cam.status.frames > 0 && hash == f.hash)
+                                         ? cam.status.identical_run + 1
+                                         : 0;
+          f.hash = hash;
+          f.valid_pixels = static_cast<int>(f.depth_mm.size()) -
+                           static_cast<int>(std::count(f.depth_mm.begin(), f.depth_mm.end(), 0));
+          f.sequence = ++cam.status.frames;
+          f.device_frame_index = ref.getFrameIndex();
+          f.device_timestamp_us = ref.getTimestamp();
+          f.host_time_ns = now;
+          cam.status.valid_ratio = static_cast<double>(f.valid_pixels) / f.depth_mm.size();
+          cam.status.low_valid_run =
+              cam.status.valid_ratio < options_.min_valid_ratio ? cam.status.low_valid_run + 1 : 0;
+          cam.last_frame_ns = now;
+          cam.frame_since_start = true;
+          ++fresh;
+        }
+      }
+    }
+  }
+  const std::int64_t now = MonotonicNs();
+  for (auto& cam : cameras_) UpdateHealth(cam.get(), now);
+  return fresh;
+}
+
+}  // namespace vb::perception

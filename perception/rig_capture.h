@@ -1,0 +1,115 @@
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "perception/rig_calibration.h"
+
+namespace openni {
+class Device;
+class VideoStream;
+}  // namespace openni
+
+namespace vb::perception {
+
+/// Health of one camera, as the daemon reports it.
+enum class CameraHealth : std::uint8_t {
+  kStarting,  ///< open, no frame yet
+  kOk,
+  kFrozen,    ///< no new frame for frozen_periods, or that many identical frames in a row
+  kMissing,   ///< cannot be opened, or lost
+  kLowValid,  ///< frames arrive but too few pixels carry depth
+};
+const char* ToString(CameraHealth health);
+
+struct CaptureOptions {
+  int fps = 30;                    ///< the depth mode asked of every camera
+  int wait_timeout_ms = 10;        ///< longest Poll() waits for a frame
+  int frozen_periods = 5;          ///< frame periods of silence or sameness that mean frozen
+  double min_valid_ratio = 0.02;   ///< below this (for frozen_periods frames): kLowValid
+  /// Recovery of an unhealthy camera, in steps this far apart: restart its stream, then
+  /// reopen the device, then keep trying to reopen.
+  int recovery_period_ms = 1000;
+  /// Depth-to-colour registration, where the device has a colour sensor and supports it.
+  bool register_depth_to_color = true;
+};
+
+/// The newest depth frame of one camera. Its buffer is sized once, from the calibration.
+struct DepthFrame {
+  std::vector<std::uint16_t> depth_mm;  ///< row major, 0 = no reading
+  int width = 0, height = 0;
+  std::uint64_t sequence = 0;             ///< frames this camera has delivered to us
+  int device_frame_index = 0;             ///< as the device numbers them
+  std::uint64_t device_timestamp_us = 0;  ///< device clock, arbitrary zero
+  std::int64_t host_time_ns = 0;          ///< CLOCK_MONOTONIC when read
+  std::uint64_t hash = 0;                 ///< XXH3 of the pixels
+  int valid_pixels = 0;
+};
+
+struct CameraStatus {
+  CameraHealth health = CameraHealth::kStarting;
+  std::int64_t health_since_ns = 0;  ///< CLOCK_MONOTONIC of the last health change
+  std::uint64_t frames = 0;
+  int identical_run = 0;  ///< consecutive frames equal to the one before
+  int low_valid_run = 0;
+  double valid_ratio = 0;
+  int stream_restarts = 0;
+  int device_reopens = 0;
+  const char* last_error = "";  ///< static text; never allocated in the frame loop
+};
+
+/// Captures depth from the rig's OpenNI2 devices (PrimeSense-class hardware, the virtual rig
+/// driver, or .oni playback through OpenNI2's file driver) with per-camera health and
+/// recovery. Frames are read only after OpenNI::waitForAnyStream says they are there (with a
+/// timeout; a blocking readFrame can hang for minutes), so a camera that fails never blocks
+/// the others. After the constructor, Poll() allocates nothing while cameras stay healthy.
+/// Owns devices: neither copyable nor movable, and not thread safe.
+class RigCapture {
+ public:
+  /// Opens every camera of @p rig. A camera that cannot be opened starts kMissing and is
+  /// retried; only a failure of OpenNI itself throws.
+  /// @throws std::runtime_error when OpenNI2 cannot initialise.
+  RigCapture(const RigCalibration& rig, const CaptureOptions& options);
+  ~RigCapture();
+  RigCapture(const RigCapture&) = delete;
+  RigCapture& operator=(const RigCapture&) = delete;
+
+  /// Waits up to wait_timeout_ms for frames, copies every frame that is ready, updates the
+  /// health of every camera and runs due recovery steps. Returns the number of new frames.
+  int Poll();
+
+  int num_cameras() const { return static_cast<int>(cameras_.size()); }
+  const CameraCalibration& calibration(int camera) const;
+  const DepthFrame& frame(int camera) const;
+  const CameraStatus& status(int camera) const;
+  /// The camera's depth stream, or nullptr while it is missing (for openni::Recorder).
+  openni::VideoStream* depth_stream(int camera);
+
+ private:
+  struct Camera;
+  void Open(Camera* cam);
+  void Close(Camera* cam);
+  void UpdateHealth(Camera* cam, std::int64_t now_ns);
+  void SetHealth(Camera* cam, CameraHealth health, std::int64_t now_ns, const char* why);
+
+  CaptureOptions options_;
+  std::vector<std::unique_ptr<Camera>> cameras_;
+  std::vector<openni::VideoStream*> ready_;  // streams waited on, capacity = cameras
+  std::vector<int> ready_camera_;
+};
+
+/// True when every camera that is healthy (kOk, or kStarting with a frame) has delivered a
+/// frame newer than @p since[camera], and at least one is healthy: a new frame set is ready.
+/// @pre since.size() == capture.num_cameras().
+bool FrameSetReady(const RigCapture& capture, std::span<const std::uint64_t> since);
+
+/// True when @p camera's newest frame may go into a frame set.
+bool UsableForFusion(const RigCapture& capture, int camera);
+
+/// CLOCK_MONOTONIC in nanoseconds.
+std::int64_t MonotonicNs();
+
+}  // namespace vb::perception

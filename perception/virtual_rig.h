@@ -1,0 +1,37 @@
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+
+#include "perception/carcass_generator.h"
+#include "perception/rig_calibration.h"
+#include "perception/virtual_scene.h"
+
+namespace vb::perception {
+
+/// Hangs a synthetic carcass (pose drawn from @p seed, upright) on the rig's hook: the
+/// gambrel end at z = 0, the body centred on the z axis. Mesh, skeleton and true cut planes
+/// are all in the rig frame.
+PosedCarcass HangCarcass(const CarcassTemplate& carcass, std::uint64_t seed);
+
+struct VirtualRigOptions {
+  std::filesystem::path out_dir;
+  RingRigOptions ring;
+  std::uint64_t carcass_seed = 1;
+  bool noise = true;
+  int fps = 30;
+  double floor_z_m = -2.2;
+};
+
+/// The files of a virtual rig with one carcass on the hook.
+struct VirtualRigFiles {
+  std::filesystem::path scene;    ///< point $VB_VIRTUAL_SCENE here
+  std::filesystem::path rig;      ///< the calibration the capture side reads
+  std::filesystem::path carcass;  ///< the hanging carcass mesh (rig frame)
+  PosedCarcass truth;             ///< that carcass with its ground truth
+};
+
+/// Writes out_dir/{rig.yaml, carcass.ply, scene.yaml}.
+VirtualRigFiles WriteVirtualRig(const CarcassTemplate& carcass, const VirtualRigOptions& options);
+
+}  // namespace vb::perception

@@ -1,0 +1,107 @@
+#include "perception/virtual_scene.h"
+
+#include <fstream>
+#include <stdexcept>
+
+#include "io/error.h"
+#include "io/yaml_reader.h"
+
+namespace vb::perception {
+
+CameraFault VirtualScene::fault(const std::string& serial) const {
+  const auto it = faults.find(serial);
+  return it == faults.end() ? CameraFault::kNone : it->second;
+}
+
+const char* ToString(CameraFault fault) {
+  switch (fault) {
+    case CameraFault::kNone:
+      return "none";
+    case CameraFault::kFrozen:
+      return "frozen";
+    case CameraFault::kMissing:
+      return "missing";
+  }
+  return "?";
+}
+
+VirtualScene LoadVirtualScene(const std::filesystem::path& path) {
+  const YAML::Node root = io::YamlReader::LoadFile(path, "virtual scene file");
+  const io::YamlReader r(path.string());
+  r.ExpectFormat(root, "vbutcher-virtual-scene", VirtualScene::kFormatVersion);
+  VirtualScene scene;
+  const std::filesystem::path folder = path.parent_path();
+  auto resolve = [&folder](const std::string& p) {
+    const std::filesystem::path file(p);
+    return file.is_absolute() ? file : folder / file;
+  };
+  scene.rig_path = resolve(r.Scalar<std::string>(r.Child(root, "rig", ""), "rig"));
+  scene.rig = LoadRigCalibration(scene.rig_path);
+  if (root["carcass"]) {
+    scene.carcass_path = resolve(r.Scalar<std::string>(root["carcass"], "carcass"));
+    if (!std::filesystem::is_regular_file(scene.carcass_path))
+      r.Fail(root["carcass"], "carcass", "no file " + scene.carcass_path.string());
+  }
+  if (root["fps"]) scene.fps = r.IntInRange(root["fps"], "fps", 1, 120);
+  if (root["floor_z_m"]) scene.floor_z_m = r.InRange(root["floor_z_m"], "floor_z_m", -20, 20);
+  if (const YAML::Node noise = root["noise"]) {
+    if (!noise.IsMap()) r.Fail(noise, "noise", "expected a mapping");
+    if (noise["enabled"]) scene.noise.enabled = r.Scalar<bool>(noise["enabled"], "noise.enabled");
+    if (noise["seed"]) scene.seed = r.Scalar<std::uint64_t>(noise["seed"], "noise.seed");
+  }
+  if (const YAML::Node faults = root["faults"]) {
+    if (!faults.IsMap()) r.Fail(faults, "faults", "expected a mapping of serial: fault");
+    for (const auto& entry : faults) {
+      const std::string serial = entry.first.as<std::string>();
+      const std::string key = "faults." + serial;
+      bool known = false;
+      for (const CameraCalibration& cam : scene.rig.cameras) known |= cam.serial == serial;
+      if (!known) r.Fail(entry.first, key, "the rig has no camera with serial '" + serial + "'");
+      const auto name = r.Scalar<std::string>(entry.second, key);
+      if (name == "none") {
+        scene.faults[serial] = CameraFault::kNone;
+      } else if (name == "frozen") {
+        scene.faults[serial] = CameraFault::kFrozen;
+      } else if (name == "missing") {
+        scene.faults[serial] = CameraFault::kMissing;
+      } else {
+        r.Fail(entry.second, key, "'" + name + "' is not one of none, frozen, missing");
+      }
+    }
+  }
+  return scene;
+}
+
+void SaveVirtualScene(const std::filesystem::path& path, const VirtualScene& scene) {
+  YAML::Emitter out;
+  out.SetDoublePrecision(17);
+  out << YAML::BeginMap;
+  out << YAML::Key << "format" << YAML::Value << "vbutcher-virtual-scene";
+  out << YAML::Key << "version" << YAML::Value << VirtualScene::kFormatVersion;
+  out << YAML::Key << "rig" << YAML::Value << scene.rig_path.string();
+  if (!scene.carcass_path.empty())
+    out << YAML::Key << "carcass" << YAML::Value << scene.carcass_path.string();
+  out << YAML::Key << "fps" << YAML::Value << scene.fps;
+  if (scene.floor_z_m) out << YAML::Key << "floor_z_m" << YAML::Value << *scene.floor_z_m;
+  out << YAML::Key << "noise" << YAML::Value << YAML::Flow << YAML::BeginMap;
+  out << YAML::Key << "enabled" << YAML::Value << scene.noise.enabled;
+  out << YAML::Key << "seed" << YAML::Value << scene.seed << YAML::EndMap;
+  if (!scene.faults.empty()) {
+    out << YAML::Key << "faults" << YAML::Value << YAML::BeginMap;
+    for (const auto& [serial, fault] : scene.faults)
+      out << YAML::Key << serial << YAML::Value << ToString(fault);
+    out << YAML::EndMap;
+  }
+  out << YAML::EndMap;
+  // Written to a temporary and renamed, so the driver never reads half a file.
+  const std::filesystem::path tmp = path.string() + ".tmp";
+  {
+    std::ofstream file(tmp);
+    if (!file) throw std::runtime_error(tmp.string() + ": cannot open for writing");
+    file << out.c_str() << '\n';
+    if (!file) throw std::runtime_error(tmp.string() + ": write failed");
+  }
+  std::filesystem::rename(tmp, path);
+}
+
+}  // namespace vb::perception

@@ -1,0 +1,61 @@
+#include "perception/virtual_scene.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "io/error.h"
+#include "perception/rig_calibration.h"
+#include "tests/support/temp_dir.h"
+
+namespace vb::perception {
+namespace {
+
+using ::testing::HasSubstr;
+
+class VirtualSceneTest : public ::testing::Test {
+ protected:
+  void SetUp() override { SaveRigCalibration(dir_ / "rig.yaml", MakeRingRig({})); }
+  std::string Error(const std::string& body) {
+    const auto path = dir_.Write("scene.yaml", "format: vbutcher-virtual-scene\nversion: 1\n" + body);
+    try {
+      LoadVirtualScene(path);
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "(accepted)";
+  }
+  test::TempDir dir_;
+};
+
+TEST_F(VirtualSceneTest, RoundTrips) {
+  VirtualScene scene;
+  scene.rig_path = "rig.yaml";
+  scene.fps = 15;
+  scene.floor_z_m = -2.0;
+  scene.seed = 9;
+  scene.noise.enabled = false;
+  scene.faults["VB0003"] = CameraFault::kFrozen;
+  SaveVirtualScene(dir_ / "scene.yaml", scene);
+  const VirtualScene back = LoadVirtualScene(dir_ / "scene.yaml");
+  EXPECT_EQ(back.rig.cameras.size(), 4u);
+  EXPECT_EQ(back.fps, 15);
+  EXPECT_EQ(*back.floor_z_m, -2.0);
+  EXPECT_EQ(back.seed, 9u);
+  EXPECT_FALSE(back.noise.enabled);
+  EXPECT_EQ(back.fault("VB0003"), CameraFault::kFrozen);
+  EXPECT_EQ(back.fault("VB0001"), CameraFault::kNone);
+  EXPECT_TRUE(back.carcass_path.empty());
+}
+
+TEST_F(VirtualSceneTest, NamesWhatIsWrong) {
+  EXPECT_THAT(Error("rig: rig.yaml\nfaults: {VB0009: frozen}\n"),
+              HasSubstr("faults.VB0009: the rig has no camera with serial 'VB0009'"));
+  EXPECT_THAT(Error("rig: rig.yaml\nfaults: {VB0001: melted}\n"),
+              HasSubstr("faults.VB0001: 'melted' is not one of none, frozen, missing"));
+  EXPECT_THAT(Error("rig: rig.yaml\ncarcass: nowhere.ply\n"), HasSubstr("carcass: no file"));
+  EXPECT_THAT(Error("rig: rig.yaml\nfps: 0\n"), HasSubstr("fps: value 0 is outside [1, 120]"));
+  EXPECT_THAT(Error("rig: other.yaml\n"), HasSubstr("other.yaml: cannot open rig calibration file"));
+}
+
+}  // namespace
+}  // namespace vb::perception

@@ -1,0 +1,35 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <memory>
+#include <vector>
+
+#include "io/triangle_mesh.h"
+
+namespace vb::morph {
+class PointIndex;
+}
+
+namespace vb::test {
+
+/// Distance from points to a triangle mesh's surface: exact point-to-triangle distance over
+/// the faces around the mesh vertices nearest to the query (exact for meshes whose triangles
+/// are small against the query's distance, as ours are).
+class SurfaceDistance {
+ public:
+  explicit SurfaceDistance(const io::TriangleMesh& mesh);
+  ~SurfaceDistance();
+
+  double operator()(const Eigen::Vector3d& p) const;
+
+ private:
+  const io::TriangleMesh& mesh_;
+  std::vector<std::vector<int>> faces_of_vertex_;
+  std::unique_ptr<morph::PointIndex> index_;
+};
+
+/// The point of triangle (a, b, c) closest to @p p.
+Eigen::Vector3d ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                                       const Eigen::Vector3d& b, const Eigen::Vector3d& c);
+
+}  // namespace vb::test
