@@ -259,7 +259,47 @@ void RigCapture::UpdateHealth(Camera* cam, std::int64_t now) {
   cam->recovery_step = 1;
 }
 
+void RigCapture::Read(Camera* cam) {
+  openni::VideoFrameRef ref;
+  if (cam->depth.readFrame(&ref) != openni::STATUS_OK || !ref.isValid()) return;
+  DepthFrame& f = cam->frame;
+  const std::int64_t now = MonotonicNs();
+  if (ref.getWidth() != f.width || ref.getHeight() != f.height ||
+      ref.getDataSize() < static_cast<int>(f.depth_mm.size() * 2)) {
+    cam->status.last_error = "frame size differs from the calibration";
+    return;
+  }
+  const auto* src = static_cast<const std::uint16_t*>(ref.getData());
+  const int stride_px = ref.getStrideInBytes() / 2;
+  for (int v = 0; v < f.height; ++v)
+    std::memcpy(&f.depth_mm[static_cast<std::size_t>(v) * f.width],
+                src + static_cast<std::ptrdiff_t>(v) * stride_px,
+                static_cast<std::size_t>(f.width) * 2);
+  CameraStatus& s = cam->status;
+  const std::uint64_t hash = XXH3_64bits(f.depth_mm.data(), f.depth_mm.size() * 2);
+  s.identical_run = (s.frames > 0 && hash == f.hash) ? s.identical_run + 1 : 0;
+  f.hash = hash;
+  f.valid_pixels = static_cast<int>(f.depth_mm.size()) -
+                   static_cast<int>(std::count(f.depth_mm.begin(), f.depth_mm.end(), 0));
+  f.sequence = ++s.frames;
+  f.device_frame_index = ref.getFrameIndex();
+  f.device_timestamp_us = ref.getTimestamp();
+  f.host_time_ns = now;
+  s.valid_ratio = static_cast<double>(f.valid_pixels) / static_cast<double>(f.depth_mm.size());
+  s.low_valid_run = s.valid_ratio < options_.min_valid_ratio ? s.low_valid_run + 1 : 0;
+  cam->last_frame_ns = now;
+  cam->frame_since_start = true;
+}
+
 int RigCapture::Poll() {
+  const std::int64_t start = MonotonicNs();
+  // Time nobody was polling is not a camera's silence: a busy caller must not make healthy
+  // cameras look frozen.
+  const std::int64_t period_ns = 1000000000 / std::max(1, options_.fps);
+  if (last_poll_ns_ > 0 && start - last_poll_ns_ > period_ns) {
+    for (auto& cam : cameras_)
+      cam->last_frame_ns = std::min(start, cam->last_frame_ns + (start - last_poll_ns_ - period_ns));
+  }
   ready_.clear();
   ready_camera_.clear();
   for (std::size_t i = 0; i < cameras_.size(); ++i) {
@@ -267,52 +307,26 @@ int RigCapture::Poll() {
     ready_.push_back(&cameras_[i]->depth);
     ready_camera_.push_back(static_cast<int>(i));
   }
+  // Drain: wait for the first frame, then take every frame already waiting (bounded), so each
+  // camera's buffer ends with its newest frame.
   int fresh = 0;
-  if (!ready_.empty()) {
+  int timeout = options_.wait_timeout_ms;
+  const int max_reads = 4 * static_cast<int>(ready_.size());
+  while (!ready_.empty() && fresh < max_reads) {
     int index = -1;
     const openni::Status rc = openni::OpenNI::waitForAnyStream(
-        ready_.data(), static_cast<int>(ready_.size()), &index, options_.wait_timeout_ms);
-    if (rc == openni::STATUS_OK && index >= 0 && index < static_cast<int>(ready_.size())) {
-      // waitForAnyStream names one ready stream; the others may be ready too, so take the
-      // named one now and the rest on the next Poll (each call costs microseconds).
-      Camera& cam = *cameras_[static_cast<std::size_t>(ready_camera_[static_cast<std::size_t>(index)])];
-      openni::VideoFrameRef ref;
-      if (cam.depth.readFrame(&ref) == openni::STATUS_OK && ref.isValid()) {
-        DepthFrame& f = cam.frame;
-        const std::int64_t now = MonotonicNs();
-        if (ref.getWidth() != f.width || ref.getHeight() != f.height ||
-            ref.getDataSize() < static_cast<int>(f.depth_mm.size() * 2)) {
-          cam.status.last_error = "frame size differs from the calibration";
-        } else {
-          const auto* src = static_cast<const std::uint16_t*>(ref.getData());
-          const int stride_px = ref.getStrideInBytes() / 2;
-          for (int v = 0; v < f.height; ++v)
-            std::memcpy(&f.depth_mm[static_cast<std::size_t>(v) * f.width],
-                        src + static_cast<std::ptrdiff_t>(v) * stride_px,
-                        static_cast<std::size_t>(f.width) * 2);
-          const std::uint64_t hash = XXH3_64bits(f.depth_mm.data(), f.depth_mm.size() * 2);
-          cam.status.identical_run = (cam.status.frames > 0 && hash == f.hash)
-                                         ? cam.status.identical_run + 1
-                                         : 0;
-          f.hash = hash;
-          f.valid_pixels = static_cast<int>(f.depth_mm.size()) -
-                           static_cast<int>(std::count(f.depth_mm.begin(), f.depth_mm.end(), 0));
-          f.sequence = ++cam.status.frames;
-          f.device_frame_index = ref.getFrameIndex();
-          f.device_timestamp_us = ref.getTimestamp();
-          f.host_time_ns = now;
-          cam.status.valid_ratio = static_cast<double>(f.valid_pixels) / f.depth_mm.size();
-          cam.status.low_valid_run =
-              cam.status.valid_ratio < options_.min_valid_ratio ? cam.status.low_valid_run + 1 : 0;
-          cam.last_frame_ns = now;
-          cam.frame_since_start = true;
-          ++fresh;
-        }
-      }
-    }
+        ready_.data(), static_cast<int>(ready_.size()), &index, timeout);
+    if (rc != openni::STATUS_OK || index < 0 || index >= static_cast<int>(ready_.size())) break;
+    Camera* cam = cameras_[static_cast<std::size_t>(ready_camera_[static_cast<std::size_t>(index)])].get();
+    const std::uint64_t before = cam->status.frames;
+    Read(cam);
+    if (cam->status.frames == before) break;  // nothing usable came: do not spin
+    ++fresh;
+    timeout = 0;
   }
   const std::int64_t now = MonotonicNs();
   for (auto& cam : cameras_) UpdateHealth(cam.get(), now);
+  last_poll_ns_ = now;
   return fresh;
 }
 

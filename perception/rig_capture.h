@@ -77,8 +77,10 @@ class RigCapture {
   RigCapture(const RigCapture&) = delete;
   RigCapture& operator=(const RigCapture&) = delete;
 
-  /// Waits up to wait_timeout_ms for frames, copies every frame that is ready, updates the
-  /// health of every camera and runs due recovery steps. Returns the number of new frames.
+  /// Waits up to wait_timeout_ms for a frame, then copies every frame that is waiting (so each
+  /// camera's buffer holds its newest), updates the health of every camera and runs due
+  /// recovery steps. Time between calls does not count as a camera's silence. Returns the
+  /// number of frames read.
   int Poll();
 
   int num_cameras() const { return static_cast<int>(cameras_.size()); }
@@ -92,6 +94,7 @@ class RigCapture {
   struct Camera;
   void Open(Camera* cam);
   void Close(Camera* cam);
+  void Read(Camera* cam);
   void UpdateHealth(Camera* cam, std::int64_t now_ns);
   void SetHealth(Camera* cam, CameraHealth health, std::int64_t now_ns, const char* why);
 
@@ -99,6 +102,7 @@ class RigCapture {
   std::vector<std::unique_ptr<Camera>> cameras_;
   std::vector<openni::VideoStream*> ready_;  // streams waited on, capacity = cameras
   std::vector<int> ready_camera_;
+  std::int64_t last_poll_ns_ = 0;
 };
 
 /// True when every camera that is healthy (kOk, or kStarting with a frame) has delivered a

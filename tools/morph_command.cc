@@ -1,5 +1,6 @@
 #include "tools/morph_command.h"
 
+#include <chrono>
 #include <cstdio>
 
 #include "io/annotations.h"
@@ -9,6 +10,7 @@
 #include "morph/cut_transfer.h"
 #include "morph/dense_alignment.h"
 #include "morph/morph_report.h"
+#include "morph/template_artifact.h"
 #include "morph/template_model.h"
 
 namespace vb::tools {
@@ -17,23 +19,32 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   if (options.stage != "coarse" && options.stage != "full") {
     throw InputError("morph: --stage: '" + options.stage + "' is neither 'coarse' nor 'full'");
   }
-  if (!options.cuts_path.empty() && options.annotations_path.empty())
-    throw InputError("morph: --cuts needs --annotations");
+  if (options.template_path.empty() == options.model_path.empty())
+    throw InputError("morph: give either --template or --model");
+  const bool has_annotations = !options.annotations_path.empty() || !options.model_path.empty();
+  if (!options.cuts_path.empty() && !has_annotations)
+    throw InputError("morph: --cuts needs --annotations (or a --model, which holds them)");
   if (!options.annotations_path.empty() && options.stage != "full")
     throw InputError("morph: --annotations needs --stage full (cuts come from the dense stage)");
-  const io::TriangleMesh mesh = io::ReadMesh(options.template_path);
+  morph::TemplateModel model;
   io::Annotations annotations;
-  if (!options.annotations_path.empty()) {
-    annotations = io::LoadAnnotations(options.annotations_path);
-    io::CheckAnnotationsFit(annotations, mesh, options.annotations_path.string());
+  if (!options.model_path.empty()) {
+    morph::TemplateArtifact artifact = morph::LoadTemplateArtifact(options.model_path);
+    model = std::move(artifact.model);
+    annotations = std::move(artifact.annotations);
+  } else {
+    const io::TriangleMesh mesh = io::ReadMesh(options.template_path);
+    if (!options.annotations_path.empty()) {
+      annotations = io::LoadAnnotations(options.annotations_path);
+      io::CheckAnnotationsFit(annotations, mesh, options.annotations_path.string());
+    }
+    try {
+      model = morph::BuildTemplateModel(mesh);
+    } catch (const InputError& e) {
+      throw InputError(options.template_path.string() + ": " + e.what());
+    }
   }
   const io::PointCloud target = io::ReadCloud(options.target_path);
-  morph::TemplateModel model;
-  try {
-    model = morph::BuildTemplateModel(mesh);
-  } catch (const InputError& e) {
-    throw InputError(options.template_path.string() + ": " + e.what());
-  }
   const morph::CoarseResult coarse = morph::AlignCoarse(model, target.points);
   morph::DenseResult dense;
   const bool full = options.stage == "full" && coarse.ok;
@@ -57,7 +68,7 @@ int RunMorphCommand(const MorphCommandOptions& options) {
     std::printf("morph: dense: normals %.3f s, %zu rounds, total %.3f s\n", dense.normals_seconds,
                 dense.rounds.size(), dense.total_seconds);
   }
-  if (!options.annotations_path.empty()) {
+  if (full && (!options.annotations_path.empty() || !options.cuts_path.empty())) {
     const std::vector<morph::TransferredCut> cuts =
         morph::TransferCuts(annotations, model.mesh, dense.mesh, target.points,
                             dense.target_normals, coarse.template_to_target.scale);
@@ -75,6 +86,54 @@ int RunMorphCommand(const MorphCommandOptions& options) {
     if (!options.cuts_path.empty())
       morph::WriteCutsReport(options.cuts_path, annotations, cuts, parts);
   }
+  return 0;
+}
+
+namespace {
+void Describe(const morph::TemplateArtifact& a) {
+  const morph::TemplateModel& m = a.model;
+  std::printf(
+      "template %s version %d: %d vertices, %d faces, size %.4g; skeleton %d nodes, %d "
+      "terminals, %d junctions; deformation graph %d nodes, %zu edges, %zu bridges; %zu cuts\n",
+      a.template_id.c_str(), a.template_version, m.mesh.num_vertices(), m.mesh.num_faces(),
+      m.size, m.skeleton.num_nodes(), m.features.num_terminals(), m.features.num_junctions(),
+      m.graph.num_nodes(), m.graph.edges.size(), m.graph.bridges.size(),
+      a.annotations.cuts.size());
+}
+
+double LoadSeconds(const std::filesystem::path& path, morph::TemplateArtifact* out) {
+  const auto start = std::chrono::steady_clock::now();
+  *out = morph::LoadTemplateArtifact(path);
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+}  // namespace
+
+int RunTemplateCompile(const TemplateCompileOptions& options) {
+  const io::TriangleMesh mesh = io::ReadMesh(options.template_path);
+  const io::Annotations annotations = io::LoadAnnotations(options.annotations_path);
+  io::CheckAnnotationsFit(annotations, mesh, options.annotations_path.string());
+  const std::string id = options.id.empty() ? annotations.template_name : options.id;
+  morph::TemplateArtifact artifact;
+  try {
+    artifact = morph::CompileTemplate(mesh, annotations, id, options.version);
+  } catch (const InputError& e) {
+    throw InputError(options.template_path.string() + ": " + e.what());
+  }
+  morph::SaveTemplateArtifact(options.out_path, artifact);
+  morph::TemplateArtifact back;
+  const double load_s = LoadSeconds(options.out_path, &back);
+  Describe(back);
+  std::printf("compiled in %.2f s; %s: %ju bytes, loads in %.3f s\n", artifact.model.seconds,
+              options.out_path.c_str(), static_cast<std::uintmax_t>(std::filesystem::file_size(options.out_path)),
+              load_s);
+  return 0;
+}
+
+int RunTemplateInfo(const std::filesystem::path& path) {
+  morph::TemplateArtifact artifact;
+  const double load_s = LoadSeconds(path, &artifact);
+  Describe(artifact);
+  std::printf("%s: checksums good, loaded in %.3f s\n", path.c_str(), load_s);
   return 0;
 }
 

@@ -6,7 +6,8 @@
 namespace vb::tools {
 
 struct MorphCommandOptions {
-  std::filesystem::path template_path;
+  std::filesystem::path template_path;  ///< a mesh; or
+  std::filesystem::path model_path;     ///< a compiled template (annotations included)
   std::filesystem::path target_path;
   std::filesystem::path out_path;
   std::string stage = "coarse";  ///< coarse | full
@@ -20,5 +21,19 @@ struct MorphCommandOptions {
 /// full stage, transfers the cuts and writes them. Returns the exit code: 0 done, 2 bad
 /// input (thrown as InputError), 3 the morph failed on this target.
 int RunMorphCommand(const MorphCommandOptions& options);
+
+struct TemplateCompileOptions {
+  std::filesystem::path template_path;
+  std::filesystem::path annotations_path;
+  std::filesystem::path out_path;
+  std::string id;   ///< default: the annotations' template name
+  int version = 1;
+};
+/// `vbutcher template compile`: builds the template model once and stores it with the
+/// annotations in one checksummed file; prints what it holds and how fast it loads back.
+int RunTemplateCompile(const TemplateCompileOptions& options);
+
+/// `vbutcher template info`: loads a compiled template (verifying it) and describes it.
+int RunTemplateInfo(const std::filesystem::path& path);
 
 }  // namespace vb::tools

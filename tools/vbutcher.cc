@@ -2,6 +2,7 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <exception>
+#include <filesystem>
 #include <string>
 
 #include "io/error.h"
@@ -42,9 +43,10 @@ int main(int argc, char** argv) {
   vb::tools::MorphCommandOptions morph;
   CLI::App* morph_cmd =
       app.add_subcommand("morph", "Morph a template mesh onto a target mesh or point cloud");
-  morph_cmd
-      ->add_option("--template", morph.template_path, "Closed template mesh (.ply, .off, .obj)")
-      ->required();
+  morph_cmd->add_option("--template", morph.template_path,
+                        "Closed template mesh (.ply, .off, .obj); or --model");
+  morph_cmd->add_option("--model", morph.model_path,
+                        "Compiled template (vbutcher template compile), annotations included");
   morph_cmd
       ->add_option("--target", morph.target_path,
                    "Target mesh or cloud (.ply, .off, .obj, .pcd, .xyz)")
@@ -58,6 +60,25 @@ int main(int argc, char** argv) {
                         "Template cut annotations (vbutcher-annotations YAML); needs --stage full");
   morph_cmd->add_option("--cuts", morph.cuts_path,
                         "Transferred cut planes, lines, confidence and part measures (JSON)");
+
+  CLI::App* template_cmd =
+      app.add_subcommand("template", "Compile a template model once, offline, or inspect one");
+  template_cmd->require_subcommand(1);
+  vb::tools::TemplateCompileOptions compile;
+  CLI::App* compile_cmd = template_cmd->add_subcommand(
+      "compile", "Store the template's precomputed model and its annotations in one file");
+  compile_cmd->add_option("--template", compile.template_path, "Closed template mesh")
+      ->required();
+  compile_cmd->add_option("--annotations", compile.annotations_path, "Cut annotations (YAML)")
+      ->required();
+  compile_cmd->add_option("-o,--out", compile.out_path, "Output file (.vbt)")->required();
+  compile_cmd->add_option("--id", compile.id, "Template id (default: the annotations' name)");
+  compile_cmd->add_option("--version", compile.version, "Template version")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  std::filesystem::path info_path;
+  CLI::App* info_cmd = template_cmd->add_subcommand("info", "Verify and describe a compiled template");
+  info_cmd->add_option("model", info_path, "Compiled template (.vbt)")->required();
 
   vb::tools::BenchOptions bench;
   CLI::App* bench_cmd = app.add_subcommand(
@@ -193,6 +214,8 @@ int main(int argc, char** argv) {
       std::fputs(vb::perception::FormatSummary(summary).c_str(), stdout);
     }
     if (morph_cmd->parsed()) return vb::tools::RunMorphCommand(morph);
+    if (compile_cmd->parsed()) return vb::tools::RunTemplateCompile(compile);
+    if (info_cmd->parsed()) return vb::tools::RunTemplateInfo(info_path);
     if (capture_bench_cmd->parsed()) return vb::tools::RunCaptureBench(capture_bench);
     if (bench_cmd->parsed()) return vb::tools::RunBenchCommand(bench);
     if (virtual_rig_cmd->parsed()) return vb::tools::RunVirtualRig(virtual_rig);

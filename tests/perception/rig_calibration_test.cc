@@ -84,6 +84,11 @@ TEST_F(BadRigTest, NamesTheKeyAndValue) {
   ExpectRejected("    intrinsics:", "    intrinsicz:", "cameras[0].intrinsics: missing");
 }
 
+TEST(RigCalibrationTest, ShippedExampleLoads) {
+  const RigCalibration rig = LoadRigCalibration(VB_SOURCE_DIR "/config/rig_example.yaml");
+  EXPECT_EQ(rig.cameras.size(), 4u);
+}
+
 TEST(RigCalibrationTest, RefusesEmptyRigsAndMissingFiles) {
   test::TempDir dir;
   const auto empty =

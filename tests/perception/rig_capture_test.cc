@@ -163,11 +163,14 @@ TEST_F(RigCaptureTest, SteadyStateCaptureAndFusionAllocateNothing) {
   EXPECT_EQ(allocations.count(), 0);
   if (allocations.count() != 0) test::PrintCountedStacks(2);
   const double frames = 4.0 * static_cast<double>(dut.status(0).frames - frames_before);
-  // Measured: 4 to 5 per frame (queue nodes, wait bookkeeping), freed again; the soak in
-  // `vbutcher bench capture` shows the resident memory stays flat.
-  EXPECT_LE(allocations.excluded(), 8 * static_cast<long>(frames));
-  std::printf("%ld allocations by our code; %ld inside OpenNI2 for %.0f frames and %ld polls\n",
-              allocations.count(), allocations.excluded(), frames, polls);
+  // OpenNI2's own allocations (queue nodes, wait bookkeeping) are freed again: at most the
+  // frames still queued can be outstanding. `vbutcher bench capture` shows RSS stays flat.
+  const long outstanding = allocations.excluded() - allocations.excluded_frees();
+  EXPECT_LE(std::abs(outstanding), 16);
+  std::printf("%ld allocations by our code; inside OpenNI2 %ld allocations and %ld frees for "
+              "%.0f frames and %ld polls\n",
+              allocations.count(), allocations.excluded(), allocations.excluded_frees(), frames,
+              polls);
   EXPECT_GT(cloud.size, 10000);
 }
 

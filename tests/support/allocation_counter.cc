@@ -23,6 +23,7 @@ namespace {
 
 std::atomic<long> g_allocations{0};
 std::atomic<long> g_excluded{0};
+std::atomic<long> g_excluded_frees{0};
 
 struct Range {
   std::uintptr_t begin = 0, end = 0;
@@ -37,6 +38,27 @@ void* g_stacks[kKeptStacks][24];
 int g_stack_depth[kKeptStacks];
 std::atomic<int> g_next_stack{0};
 
+// True when code of an excluded library is on the call stack.
+bool InExcludedLibrary(void* const* frames, int n) {
+  const int ranges = g_num_ranges.load(std::memory_order_acquire);
+  for (int i = 0; i < n; ++i) {
+    const auto pc = reinterpret_cast<std::uintptr_t>(frames[i]);
+    for (int r = 0; r < ranges; ++r)
+      if (pc >= g_ranges[r].begin && pc < g_ranges[r].end) return true;
+  }
+  return false;
+}
+
+// Counts a free made by an excluded library, so a test can see its allocations balance.
+void CountFree() {
+  if (t_in_hook || g_num_ranges.load(std::memory_order_acquire) == 0) return;
+  t_in_hook = true;
+  void* frames[24];
+  if (InExcludedLibrary(frames, backtrace(frames, 24)))
+    g_excluded_frees.fetch_add(1, std::memory_order_relaxed);
+  t_in_hook = false;
+}
+
 // Walks the stack (only when libraries are excluded) and counts the allocation.
 void Count() {
   if (t_in_hook) return;  // the stack walk's own allocations are the counter's, not the test's
@@ -47,12 +69,7 @@ void Count() {
   t_in_hook = true;
   void* frames[24];
   const int n = backtrace(frames, 24);
-  bool excluded = false;
-  const int ranges = g_num_ranges.load(std::memory_order_acquire);
-  for (int i = 0; i < n && !excluded; ++i) {
-    const auto pc = reinterpret_cast<std::uintptr_t>(frames[i]);
-    for (int r = 0; r < ranges; ++r) excluded |= pc >= g_ranges[r].begin && pc < g_ranges[r].end;
-  }
+  const bool excluded = InExcludedLibrary(frames, n);
   (excluded ? g_excluded : g_allocations).fetch_add(1, std::memory_order_relaxed);
   if (!excluded) {
     const int slot = g_next_stack.fetch_add(1) % kKeptStacks;
@@ -88,6 +105,7 @@ int AddRanges(dl_phdr_info* info, std::size_t, void* data) {
 namespace vb::test {
 long AllocationCount() { return g_allocations.load(std::memory_order_relaxed); }
 long ExcludedAllocationCount() { return g_excluded.load(std::memory_order_relaxed); }
+long ExcludedFreeCount() { return g_excluded_frees.load(std::memory_order_relaxed); }
 
 void PrintCountedStacks(int fd) {
   const int total = g_next_stack.load();
@@ -114,7 +132,12 @@ void* __libc_malloc(std::size_t);
 void* __libc_calloc(std::size_t, std::size_t);
 void* __libc_realloc(void*, std::size_t);
 void* __libc_memalign(std::size_t, std::size_t);
+void __libc_free(void*);
 
+void free(void* p) {
+  if (p != nullptr) CountFree();
+  __libc_free(p);
+}
 void* malloc(std::size_t n) {
   Count();
   return __libc_malloc(n);
@@ -152,8 +175,11 @@ void* operator new(std::size_t n) {
   throw std::bad_alloc();
 }
 void* operator new[](std::size_t n) { return operator new(n); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+void operator delete(void* p) noexcept {
+  if (p != nullptr) CountFree();
+  std::free(p);
+}
+void operator delete(void* p, std::size_t) noexcept { operator delete(p); }
+void operator delete[](void* p) noexcept { operator delete(p); }
+void operator delete[](void* p, std::size_t) noexcept { operator delete(p); }
 #endif

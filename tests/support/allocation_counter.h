@@ -9,8 +9,10 @@ namespace vb::test {
 /// operator new is counted.
 long AllocationCount();
 
-/// Allocations attributed to excluded libraries (their code is on the call stack).
+/// Allocations attributed to excluded libraries (their code is on the call stack), and the
+/// frees they made: equal counts over a stretch mean the library's memory did not grow.
 long ExcludedAllocationCount();
+long ExcludedFreeCount();
 
 /// From now on, allocations made with code of the loaded shared library whose path contains
 /// @p path_fragment on the call stack are counted apart (ExcludedAllocationCount). For a
@@ -25,13 +27,18 @@ void PrintCountedStacks(int fd);
 /// Counts the allocations made in its scope (Drake's LimitMalloc, without the abort).
 class AllocationScope {
  public:
-  AllocationScope() : start_(AllocationCount()), excluded_start_(ExcludedAllocationCount()) {}
+  AllocationScope()
+      : start_(AllocationCount()),
+        excluded_start_(ExcludedAllocationCount()),
+        excluded_frees_start_(ExcludedFreeCount()) {}
   long count() const { return AllocationCount() - start_; }
   long excluded() const { return ExcludedAllocationCount() - excluded_start_; }
+  long excluded_frees() const { return ExcludedFreeCount() - excluded_frees_start_; }
 
  private:
   long start_;
   long excluded_start_;
+  long excluded_frees_start_;
 };
 
 }  // namespace vb::test

@@ -65,5 +65,36 @@ check "morph refuses an empty target" 2 "no points" \
 check "morph refuses a missing target" 2 "absent.ply" \
   "$vbutcher" morph --template "$work/set/template.ply" --target "$work/absent.ply" --out "$work/x.ply"
 
+# template compile: the model computed once, stored with the annotations; morph --model uses it.
+check "template compile writes a model" 0 "loads in" \
+  "$vbutcher" template compile --template "$work/set/template.ply" --annotations "$work/set/template_annotations.yaml" -o "$work/t.vbt"
+check "template info verifies it" 0 "checksums good" "$vbutcher" template info "$work/t.vbt"
+check "morph --model transfers the stored cuts" 0 "part shoulder" \
+  "$vbutcher" morph --model "$work/t.vbt" --target "$work/set/target_001_cloud.ply" --out "$work/g.ply" --stage full --cuts "$work/g.json"
+head -c 2000 "$work/t.vbt" >"$work/cut.vbt"
+check "a truncated model is refused, naming the file" 2 "cut.vbt: checksum mismatch" "$vbutcher" template info "$work/cut.vbt"
+check "morph refuses a truncated model" 2 "cut.vbt" \
+  "$vbutcher" morph --model "$work/cut.vbt" --target "$work/set/target_000.ply" --out "$work/x.ply"
+check "morph wants --template or --model" 2 "either --template or --model" \
+  "$vbutcher" morph --target "$work/set/target_000.ply" --out "$work/x.ply"
+check "template compile refuses annotations of another mesh" 2 "other.yaml" \
+  "$vbutcher" template compile --template "$work/set/template.ply" --annotations "$work/other.yaml" -o "$work/x.vbt"
+
+# The virtual OpenNI2 rig: capture one frame set, fuse it; record and play back.
+check "virtual-rig writes a rig" 0 "VB_VIRTUAL_SCENE" "$vbutcher" virtual-rig --out "$work/rig" --cameras 3
+check "capture fuses the rig's frames" 0 "wrote" \
+  "$vbutcher" capture --rig "$work/rig/rig.yaml" --scene "$work/rig/scene.yaml" --out "$work/fused.ply"
+[ -s "$work/fused.ply" ] || { echo "FAIL: capture wrote no cloud"; failures=$((failures + 1)); }
+check "record writes .oni files and a playback rig" 0 "playback calibration" \
+  "$vbutcher" record --rig "$work/rig/rig.yaml" --scene "$work/rig/scene.yaml" --out "$work/rec" --seconds 0.5
+check "capture plays the recording back" 0 "wrote" \
+  "$vbutcher" capture --rig "$work/rec/rig.yaml" --out "$work/replayed.ply"
+sed 's/fx: [0-9.]*/fx: -1/' "$work/rig/rig.yaml" >"$work/badrig.yaml"
+check "capture refuses a bad calibration, naming file and key" 2 "badrig.yaml:.*intrinsics.fx" \
+  "$vbutcher" capture --rig "$work/badrig.yaml" --out "$work/x.ply"
+sed 's/^fps: .*/fps: 0/' "$work/rig/scene.yaml" >"$work/rig/badscene.yaml"
+check "capture refuses a bad scene, naming file and key" 2 "badscene.yaml:.*fps" \
+  "$vbutcher" capture --rig "$work/rig/rig.yaml" --scene "$work/rig/badscene.yaml" --out "$work/x.ply"
+
 echo "$failures failed"
 [ "$failures" -eq 0 ]

@@ -1,0 +1,91 @@
+#include "morph/template_artifact.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "io/error.h"
+#include "morph/coarse_alignment.h"
+#include "morph/dense_alignment.h"
+#include "perception/carcass_generator.h"
+#include "tests/support/lamb_fixture.h"
+#include "tests/support/temp_dir.h"
+
+namespace vb::morph {
+namespace {
+
+using ::testing::HasSubstr;
+
+class TemplateArtifactTest : public test::LambTemplateTest {};
+
+TEST_F(TemplateArtifactTest, MorphFromTheLoadedArtifactEqualsMorphFromTheBuiltModel) {
+  test::TempDir dir;
+  TemplateArtifact artifact;
+  artifact.template_id = "lamb";
+  artifact.template_version = 3;
+  artifact.model = *model_;
+  artifact.annotations = carcass_->annotations;
+  SaveTemplateArtifact(dir / "lamb.vbt", artifact);
+  const TemplateArtifact back = LoadTemplateArtifact(dir / "lamb.vbt");
+  EXPECT_EQ(back.template_id, "lamb");
+  EXPECT_EQ(back.template_version, 3);
+  EXPECT_EQ(back.model.graph.num_nodes(), model_->graph.num_nodes());
+  EXPECT_EQ(back.model.graph.nodes, model_->graph.nodes);
+  EXPECT_EQ(back.model.V, model_->V);
+  ASSERT_EQ(back.annotations.cuts.size(), carcass_->annotations.cuts.size());
+  EXPECT_EQ(back.annotations.cuts[1].line.size(), carcass_->annotations.cuts[1].line.size());
+  EXPECT_EQ(back.annotations.parts, carcass_->annotations.parts);
+
+  // The same target morphed with both: bit-identical results.
+  const perception::PosedCarcass target =
+      perception::PoseCarcass(*carcass_, perception::SampleCarcassPose(4));
+  const CoarseResult a = AlignCoarse(*model_, target.mesh.V);
+  const CoarseResult b = AlignCoarse(back.model, target.mesh.V);
+  ASSERT_TRUE(a.ok && b.ok);
+  EXPECT_EQ(a.mesh.V, b.mesh.V);
+  const DenseResult da = AlignDense(*model_, a, target.mesh.V, Eigen::Matrix3Xd());
+  const DenseResult db = AlignDense(back.model, b, target.mesh.V, Eigen::Matrix3Xd());
+  ASSERT_TRUE(da.ok && db.ok);
+  EXPECT_EQ(da.mesh.V, db.mesh.V);
+}
+
+TEST_F(TemplateArtifactTest, RefusesAnnotationsForAnotherMesh) {
+  io::Annotations other = carcass_->annotations;
+  other.vertex_count += 1;
+  EXPECT_THROW(CompileTemplate(carcass_->mesh, other, "lamb", 1), InputError);
+  EXPECT_THROW(CompileTemplate(carcass_->mesh, carcass_->annotations, "", 1), InputError);
+}
+
+TEST_F(TemplateArtifactTest, RefusesCorruptTruncatedAndForeignFiles) {
+  test::TempDir dir;
+  TemplateArtifact artifact;
+  artifact.template_id = "lamb";
+  artifact.model = *model_;
+  artifact.annotations = carcass_->annotations;
+  SaveTemplateArtifact(dir / "lamb.vbt", artifact);
+  std::ifstream in(dir / "lamb.vbt", std::ios::binary);
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  const std::string good = buffer.str();
+  auto error = [&](const std::string& bytes) {
+    const auto p = dir.Write("bad.vbt", bytes);
+    try {
+      LoadTemplateArtifact(p);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(accepted)");
+  };
+  EXPECT_THAT(error(good.substr(0, good.size() - 100)), HasSubstr("checksum mismatch"));
+  std::string flipped = good;
+  flipped[good.size() / 3] ^= 1;
+  EXPECT_THAT(error(flipped), HasSubstr("bad.vbt: checksum mismatch"));
+  EXPECT_THAT(error("VBARCHV1"), HasSubstr("bad magic"));
+  EXPECT_THAT(error(std::string()), HasSubstr("bad magic"));
+  EXPECT_THROW(LoadTemplateArtifact(dir / "absent.vbt"), InputError);
+}
+
+}  // namespace
+}  // namespace vb::morph
