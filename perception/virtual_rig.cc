@@ -40,4 +40,23 @@ VirtualRigFiles WriteVirtualRig(const CarcassTemplate& carcass, const VirtualRig
   return files;
 }
 
+VirtualLine::VirtualLine(const CarcassTemplate* carcass, std::filesystem::path scene_path)
+    : carcass_(carcass), scene_path_(std::move(scene_path)), scene_(LoadVirtualScene(scene_path_)) {
+  scene_.rig_path = std::filesystem::relative(scene_.rig_path, scene_path_.parent_path());
+}
+
+PosedCarcass VirtualLine::Hang(std::uint64_t seed) {
+  PosedCarcass posed = HangCarcass(*carcass_, seed);
+  const std::string name = "carcass_" + std::to_string(seed) + ".ply";
+  io::WriteMesh(scene_path_.parent_path() / name, posed.mesh);
+  scene_.carcass_path = name;
+  SaveVirtualScene(scene_path_, scene_);
+  return posed;
+}
+
+void VirtualLine::Clear() {
+  scene_.carcass_path.clear();
+  SaveVirtualScene(scene_path_, scene_);
+}
+
 }  // namespace vb::perception

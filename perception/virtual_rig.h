@@ -34,4 +34,21 @@ struct VirtualRigFiles {
 /// Writes out_dir/{rig.yaml, carcass.ply, scene.yaml}.
 VirtualRigFiles WriteVirtualRig(const CarcassTemplate& carcass, const VirtualRigOptions& options);
 
+/// A line of carcasses through an existing virtual scene: hangs carcass k (its own file, so
+/// the driver sees a change) or empties the hook, by rewriting the scene file.
+class VirtualLine {
+ public:
+  /// @throws InputError when @p scene_path is not a valid scene.
+  VirtualLine(const CarcassTemplate* carcass, std::filesystem::path scene_path);
+  /// Hangs the carcass of pose seed @p seed; returns it with its ground truth (rig frame).
+  PosedCarcass Hang(std::uint64_t seed);
+  /// Nothing on the hook.
+  void Clear();
+
+ private:
+  const CarcassTemplate* carcass_;
+  std::filesystem::path scene_path_;
+  VirtualScene scene_;
+};
+
 }  // namespace vb::perception

@@ -92,6 +92,38 @@ int RunVirtualRig(const VirtualRigCommandOptions& options) {
   return 0;
 }
 
+int RunVirtualLine(const VirtualLineOptions& options) {
+  if (options.count < 1) throw InputError("virtual-line: --count must be positive");
+  const perception::CarcassTemplate carcass = perception::BuildCarcassTemplate();
+  perception::VirtualLine line(&carcass, options.scene_path);
+  std::ofstream truth;
+  if (!options.truth_out.empty()) {
+    truth.open(options.truth_out);
+    if (!truth) throw std::runtime_error(options.truth_out.string() + ": cannot open for writing");
+    truth << "# true cut planes (rig frame) of each carcass, in the order they were hung\n"
+          << "carcasses:\n";
+  }
+  for (int k = 0; k < options.count; ++k) {
+    const std::uint64_t seed = options.first_seed + static_cast<std::uint64_t>(k);
+    const perception::PosedCarcass posed = line.Hang(seed);
+    std::printf("virtual-line: carcass %d (seed %llu) on the hook\n", k + 1,
+                static_cast<unsigned long long>(seed));
+    std::fflush(stdout);
+    if (truth) {
+      truth << "  - seed: " << seed << "\n    planes:\n";
+      for (const io::Plane& p : posed.cut_planes)
+        truth << "      - {point: [" << p.point.x() << ", " << p.point.y() << ", " << p.point.z()
+              << "], normal: [" << p.normal.x() << ", " << p.normal.y() << ", " << p.normal.z()
+              << "]}\n";
+      truth.flush();
+    }
+    std::this_thread::sleep_for(std::chrono::duration<double>(options.hang_s));
+    line.Clear();
+    std::this_thread::sleep_for(std::chrono::duration<double>(options.gap_s));
+  }
+  return 0;
+}
+
 int RunCapture(const CaptureCommandOptions& options) {
   UseScene(options.scene_path);
   const perception::RigCalibration rig = perception::LoadRigCalibration(options.rig_path);

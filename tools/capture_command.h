@@ -37,6 +37,17 @@ struct RecordCommandOptions {
 /// `vbutcher record`: one .oni per camera plus a playback calibration.
 int RunRecord(const RecordCommandOptions& options);
 
+struct VirtualLineOptions {
+  std::filesystem::path scene_path;
+  int count = 5;
+  std::uint64_t first_seed = 100;
+  double hang_s = 4.0;  ///< a carcass stays this long in the rig
+  double gap_s = 1.0;   ///< then the hook is empty this long
+  std::filesystem::path truth_out;  ///< per carcass its true cut planes (YAML)
+};
+/// `vbutcher virtual-line`: a stream of synthetic carcasses through a virtual scene.
+int RunVirtualLine(const VirtualLineOptions& options);
+
 struct CaptureBenchOptions {
   std::filesystem::path scene_path;  ///< empty: a 4-camera virtual rig in a temporary folder
   int sets = 300;                    ///< frame sets to capture and fuse

@@ -123,6 +123,23 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   virtual_rig_cmd->add_flag("--no-noise", virtual_rig.no_noise, "Noise-free depth");
 
+  vb::tools::VirtualLineOptions virtual_line;
+  CLI::App* virtual_line_cmd = app.add_subcommand(
+      "virtual-line", "Feed a virtual rig a stream of synthetic carcasses (rewrites its scene)");
+  virtual_line_cmd->add_option("--scene", virtual_line.scene_path, "Virtual scene file")
+      ->required()
+      ->check(CLI::ExistingFile);
+  virtual_line_cmd->add_option("--count", virtual_line.count, "Carcasses")->capture_default_str();
+  virtual_line_cmd->add_option("--seed", virtual_line.first_seed, "Pose seed of the first")
+      ->capture_default_str();
+  virtual_line_cmd->add_option("--hang-s", virtual_line.hang_s, "Seconds each hangs in the rig")
+      ->check(CLI::Range(0.1, 600.0))
+      ->capture_default_str();
+  virtual_line_cmd->add_option("--gap-s", virtual_line.gap_s, "Seconds the hook is empty between")
+      ->check(CLI::Range(0.0, 600.0))
+      ->capture_default_str();
+  virtual_line_cmd->add_option("--truth", virtual_line.truth_out, "Write the true cut planes here");
+
   vb::tools::CaptureCommandOptions capture;
   CLI::App* capture_cmd = app.add_subcommand(
       "capture", "Capture one frame set from the rig's OpenNI2 cameras and fuse it into a cloud");
@@ -219,6 +236,7 @@ int main(int argc, char** argv) {
     if (capture_bench_cmd->parsed()) return vb::tools::RunCaptureBench(capture_bench);
     if (bench_cmd->parsed()) return vb::tools::RunBenchCommand(bench);
     if (virtual_rig_cmd->parsed()) return vb::tools::RunVirtualRig(virtual_rig);
+    if (virtual_line_cmd->parsed()) return vb::tools::RunVirtualLine(virtual_line);
     if (capture_cmd->parsed()) return vb::tools::RunCapture(capture);
     if (record_cmd->parsed()) return vb::tools::RunRecord(record);
     if (saw_sim_cmd->parsed()) return vb::tools::RunSawSim(saw_sim);

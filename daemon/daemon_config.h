@@ -1,0 +1,66 @@
+#pragma once
+
+#include <Eigen/Geometry>
+#include <filesystem>
+#include <string>
+
+#include "io/lcm_publisher.h"
+#include "perception/fusion.h"
+#include "perception/rig_calibration.h"
+#include "perception/rig_capture.h"
+
+namespace vb::daemon {
+
+/// When a carcass becomes a job.
+struct JobOptions {
+  /// Fused points in the region of interest that mean a carcass hangs there.
+  int presence_min_points = 5000;
+  /// Consecutive frame sets with a carcass before its cloud is trusted (it swings in).
+  int settle_sets = 3;
+  /// Below this every cut's confidence must reach, the saw gets no waypoints.
+  double min_confidence = 0.6;
+  /// A result older than this (from the frame set it came from) is never sent to the saw.
+  int max_result_age_ms = 2500;
+};
+
+struct CanOptions {
+  /// SocketCAN interface, or "loopback" for an in-process reference saw controller (for
+  /// machines without CAN; the demo and tests say when they use it).
+  std::string interface = "can0";
+  int heartbeat_period_ms = 100;
+  int send_deadline_ms = 20;
+};
+
+struct LcmOptions {
+  std::string url = "udpm://239.255.76.67:7667?ttl=0";
+  io::LcmChannels channels;
+  int status_period_ms = 500;
+};
+
+/// virtualbutcherd's configuration: one YAML file, validated entirely at start. Format
+/// "virtualbutcherd-config" version 1 (config/virtualbutcherd.yaml is the shipped example;
+/// relative paths are from the file's folder).
+struct DaemonConfig {
+  static constexpr int kFormatVersion = 1;
+  std::filesystem::path source;
+  std::filesystem::path template_path;  ///< compiled template (vbutcher template compile)
+  std::filesystem::path rig_path;       ///< rig calibration
+  perception::RigCalibration rig;
+  /// Optional: run against the virtual rig described by this scene ($VB_VIRTUAL_SCENE).
+  std::filesystem::path virtual_scene;
+  perception::CaptureOptions capture;
+  perception::FusionOptions fusion;
+  JobOptions job;
+  LcmOptions lcm;
+  CanOptions can;
+  /// Pose of the rig frame in the saw frame: waypoints go out as p_Saw = X_SawRig p_Rig.
+  Eigen::Isometry3d X_SawRig = Eigen::Isometry3d::Identity();
+  int watchdog_ms = 0;  ///< filled from $WATCHDOG_USEC by the daemon, not from the file
+};
+
+/// Loads and validates @p path and the rig calibration it names; checks the template file
+/// exists and is readable (the daemon loads and verifies it next).
+/// @throws InputError "file:line: key: problem" for anything wrong.
+DaemonConfig LoadDaemonConfig(const std::filesystem::path& path);
+
+}  // namespace vb::daemon

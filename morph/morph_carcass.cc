@@ -1,0 +1,35 @@
+#include "morph/morph_carcass.h"
+
+#include <chrono>
+#include <exception>
+
+namespace vb::morph {
+
+CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& annotations,
+                           const Eigen::Matrix3Xd& target, const Eigen::Matrix3Xd& normals) {
+  const auto start = std::chrono::steady_clock::now();
+  CarcassResult r;
+  try {
+    r.coarse = AlignCoarse(model, target);
+    if (!r.coarse.ok) {
+      r.error = "coarse stage: " + r.coarse.error;
+    } else {
+      r.dense = AlignDense(model, r.coarse, target, normals);
+      if (!r.dense.ok) {
+        r.error = "dense stage: " + r.dense.error;
+      } else {
+        r.cuts = TransferCuts(annotations, model.mesh, r.dense.mesh, target,
+                              r.dense.target_normals, r.coarse.template_to_target.scale);
+        r.parts = CutParts(r.dense.mesh, r.cuts);
+        r.ok = true;
+      }
+    }
+  } catch (const std::exception& e) {  // a bad target is a result, not a crash
+    r.ok = false;
+    r.error = e.what();
+  }
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return r;
+}
+
+}  // namespace vb::morph

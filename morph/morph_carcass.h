@@ -1,0 +1,33 @@
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "io/annotations.h"
+#include "io/mesh_measures.h"
+#include "io/triangle_mesh.h"
+#include "morph/coarse_alignment.h"
+#include "morph/cut_transfer.h"
+#include "morph/dense_alignment.h"
+#include "morph/template_model.h"
+
+namespace vb::morph {
+
+/// One carcass through the whole method: coarse posture, dense surface, cut transfer and
+/// virtual cutting.
+struct CarcassResult {
+  bool ok = false;
+  std::string error;  ///< why not, when !ok
+  CoarseResult coarse;
+  DenseResult dense;
+  std::vector<TransferredCut> cuts;
+  std::vector<io::PartMeasure> parts;  ///< in the annotations' part order
+  double seconds = 0;
+};
+
+/// Morphs @p model onto @p target (points and, optionally, unit normals of the same count)
+/// and carries @p annotations over. Never throws on a bad target: the result says why.
+CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& annotations,
+                           const Eigen::Matrix3Xd& target, const Eigen::Matrix3Xd& normals);
+
+}  // namespace vb::morph
