@@ -146,9 +146,9 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
   if (c.lcm.url.rfind("udpm://", 0) != 0 && c.lcm.url.rfind("memq://", 0) != 0)
     r.Fail(root["lcm"]["url"], "lcm.url", "'" + c.lcm.url + "' is neither udpm:// nor memq://");
 
-  const Section can(r, root, "can", {"interface", "heartbeat_period_ms", "send_deadline_ms"});
+  // The heartbeat period is the protocol's (io::saw::kHeartbeatPeriodMs), not a setting.
+  const Section can(r, root, "can", {"interface", "send_deadline_ms"});
   can.String("interface", &c.can.interface);
-  can.Int("heartbeat_period_ms", 10, 1000, &c.can.heartbeat_period_ms);
   can.Int("send_deadline_ms", 1, 1000, &c.can.send_deadline_ms);
   if (c.can.interface.size() > 15)
     r.Fail(root["can"]["interface"], "can.interface", "'" + c.can.interface + "' is longer than an interface name can be");

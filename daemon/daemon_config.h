@@ -27,7 +27,6 @@ struct CanOptions {
   /// SocketCAN interface, or "loopback" for an in-process reference saw controller (for
   /// machines without CAN; the demo and tests say when they use it).
   std::string interface = "can0";
-  int heartbeat_period_ms = 100;
   int send_deadline_ms = 20;
 };
 

@@ -72,6 +72,7 @@ void Pipeline::CaptureLoop() {
   std::array<perception::DepthView, perception::RigCalibration::kMaxCameras> views;
   perception::FusedCloud cloud = fusion_->MakeOutput();
   int present_sets = 0, absent_sets = 0;
+  long skipped_sets = 0;
   bool carcass_taken = false;  // this carcass already became a job
   while (!stop_) {
     capture.Poll();
@@ -81,6 +82,12 @@ void Pipeline::CaptureLoop() {
       for (int c = 0; c < n; ++c) camera_status_[static_cast<std::size_t>(c)] = capture.status(c);
     }
     if (!perception::FrameSetReady(capture, since)) continue;
+    // While a carcass that already became a job hangs there, only its departure matters:
+    // fuse every 10th set, leaving the cores to the morph.
+    if (carcass_taken && ++skipped_sets % 10 != 0) {
+      for (int c = 0; c < n; ++c) since[static_cast<std::size_t>(c)] = capture.frame(c).sequence;
+      continue;
+    }
     int used = 0;
     std::int64_t newest_ns = 0;
     const char* down = nullptr;
@@ -191,8 +198,10 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
                        artifact_.template_version, frames_utime};
   vbutcher::cut_lines_t message = MakeCutLines(result, artifact_.annotations, identity);
   io::saw::Job job;
-  std::string why = MakeSawJob(result, config_.X_SawRig, config_.job.min_confidence, number,
-                               sequence, &job);
+  std::string why = refusal.empty() ? MakeSawJob(result, config_.X_SawRig,
+                                                 config_.job.min_confidence, number, sequence,
+                                                 &job)
+                                      : refusal;
   // Never a stale command: a result that took too long is not sent.
   const double age_s = SecondsSince(frames_ns);
   if (why.empty() && age_s * 1000 > config_.job.max_result_age_ms) {

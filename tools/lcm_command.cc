@@ -70,9 +70,10 @@ struct CutLinesCounter {
     if (m->sequence <= last_sequence) ++out_of_order;
     last_sequence = m->sequence;
     ++received;
-    std::printf("lcm-listen: %s seq %lld carcass %s: %d cuts, %d parts\n", channel.c_str(),
-                static_cast<long long>(m->sequence), m->carcass_id.c_str(), m->num_cuts,
-                m->num_parts);
+    std::printf("lcm-listen: %s seq %lld carcass %s: %d cuts, %d parts, saw %s: %s\n",
+                channel.c_str(), static_cast<long long>(m->sequence), m->carcass_id.c_str(),
+                m->num_cuts, m->num_parts, m->waypoints_sent ? "sent" : "not sent",
+                m->status.c_str());
   }
   int received = 0, invalid = 0, out_of_order = 0;
   std::int64_t last_sequence = 0;

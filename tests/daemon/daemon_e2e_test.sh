@@ -1,0 +1,61 @@
+#!/usr/bin/env bash
+# virtualbutcherd end to end, as on the line but with the virtual OpenNI2 rig: a stream of
+# synthetic carcasses in, one job per carcass out on LCM (udpm, inside a private network
+# namespace so nothing leaves it). Then a camera goes missing: the next carcass is refused
+# with the camera named, and the daemon keeps serving. CAN goes to the in-process loopback
+# saw controller (this kernel has no CAN; the qemu HIL test covers the real stack).
+# Usage: daemon_e2e_test.sh <vbutcher> <virtualbutcherd>
+set -euo pipefail
+vbutcher=$(realpath "$1")
+daemon=$(realpath "$2")
+if [ "${VB_IN_NETNS:-}" != 1 ]; then
+  exec unshare -n env VB_IN_NETNS=1 bash "$0" "$@"
+fi
+ip link set lo up multicast on
+ip route add 224.0.0.0/4 dev lo
+url="udpm://239.255.76.67:7667?ttl=0"
+work=$(mktemp -d)
+trap 'kill $(jobs -p) 2>/dev/null || true; rm -rf "$work"' EXIT
+fail() { echo "FAIL: $*"; echo "--- daemon log"; cat "$work/daemon.log" 2>/dev/null; exit 1; }
+
+"$vbutcher" synth --out "$work/set" --count 1 --seed 1 >/dev/null
+"$vbutcher" template compile --template "$work/set/template.ply" \
+  --annotations "$work/set/template_annotations.yaml" -o "$work/lamb.vbt" >/dev/null
+"$vbutcher" virtual-rig --out "$work/rig" >/dev/null
+sed -i '/^carcass:/d' "$work/rig/scene.yaml"   # the hook starts empty
+cat >"$work/vbd.yaml" <<YAML
+format: virtualbutcherd-config
+version: 1
+template: lamb.vbt
+rig: rig/rig.yaml
+virtual_scene: rig/scene.yaml
+lcm: {url: "$url"}
+can: {interface: loopback}
+job: {max_result_age_ms: 20000}
+X_SawRig: {translation: [0, 0, 1.8], rotation_wxyz: [1, 0, 0, 0]}
+YAML
+"$daemon" --config "$work/vbd.yaml" --check-config >/dev/null || fail "--check-config"
+
+# Three carcasses; a listener counts the cut-lines messages.
+"$vbutcher" lcm-listen --url "$url" --count 4 --timeout 120 >"$work/listen.txt" &
+listener=$!
+"$daemon" --config "$work/vbd.yaml" --run-seconds 150 2>"$work/daemon.log" &
+daemon_pid=$!
+for _ in $(seq 100); do grep -q "LCM on" "$work/daemon.log" && break; sleep 0.1; done
+grep -q "LCM on" "$work/daemon.log" || fail "the daemon did not come up"
+"$vbutcher" virtual-line --scene "$work/rig/scene.yaml" --count 3 --hang-s 6 --gap-s 2 >/dev/null
+# A camera goes missing; the next carcass must be refused, naming it.
+sed -i 's/^faults:.*//' "$work/rig/scene.yaml"
+echo "faults: {VB0002: missing}" >>"$work/rig/scene.yaml"
+"$vbutcher" virtual-line --scene "$work/rig/scene.yaml" --count 1 --seed 200 --hang-s 6 --gap-s 1 >/dev/null
+wait $listener || fail "listener: $(cat "$work/listen.txt")"
+kill -0 $daemon_pid 2>/dev/null || fail "the daemon died"
+kill -TERM $daemon_pid
+wait $daemon_pid || fail "the daemon did not stop cleanly on SIGTERM"
+cat "$work/listen.txt"
+grep -q "received 4 invalid 0 out_of_order 0" "$work/listen.txt" || fail "expected 4 valid messages"
+[ "$(grep -c 'carcass C00000[123]:' "$work/listen.txt")" -eq 3 ] || fail "the first three carcasses"
+grep -q "carcass C000004: 0 cuts, 0 parts, saw not sent: camera cam1 is \(frozen\|missing\)" "$work/listen.txt" ||
+  fail "the carcass seen with a camera down was not refused naming the camera"
+grep -q "stopped after 4 jobs" "$work/daemon.log" || fail "daemon job count"
+echo "ok: 3 carcasses, 3 jobs; a camera down refused the 4th with a reason; the daemon kept serving"
