@@ -111,15 +111,16 @@ void SaveRigCalibration(const std::filesystem::path& path, const RigCalibration&
   if (!file) throw std::runtime_error(path.string() + ": write failed");
 }
 
-Eigen::Isometry3d LookAt(const Eigen::Vector3d& p_RigCam, const Eigen::Vector3d& p_RigTarget) {
+Eigen::Isometry3d LookAt(const Eigen::Vector3d& p_RigCam, const Eigen::Vector3d& p_RigTarget,
+                         bool portrait) {
   const Eigen::Vector3d z = (p_RigTarget - p_RigCam).normalized();  // optical axis
   Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
   if (std::abs(z.dot(up)) > 0.99) up = Eigen::Vector3d::UnitX();
   const Eigen::Vector3d x = z.cross(up).normalized();  // image right
   const Eigen::Vector3d y = z.cross(x);                // image down
   Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
-  X.linear().col(0) = x;
-  X.linear().col(1) = y;
+  X.linear().col(0) = portrait ? y : x;
+  X.linear().col(1) = portrait ? Eigen::Vector3d(-x) : y;
   X.linear().col(2) = z;
   X.translation() = p_RigCam;
   return X;
@@ -139,7 +140,7 @@ RigCalibration MakeRingRig(const RingRigOptions& options) {
     cam.intrinsics = options.intrinsics;
     const Eigen::Vector3d p(options.radius_m * std::cos(azimuth),
                             options.radius_m * std::sin(azimuth), options.height_m);
-    cam.X_RigCam = LookAt(p, Eigen::Vector3d(0, 0, options.look_at_z_m));
+    cam.X_RigCam = LookAt(p, Eigen::Vector3d(0, 0, options.look_at_z_m), options.portrait);
     rig.cameras.push_back(std::move(cam));
   }
   return rig;

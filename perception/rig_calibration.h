@@ -64,12 +64,16 @@ RigCalibration LoadRigCalibration(const std::filesystem::path& path);
 /// @throws std::runtime_error when the file cannot be written.
 void SaveRigCalibration(const std::filesystem::path& path, const RigCalibration& rig);
 
-/// Options of a ring of cameras around the hook, looking at the carcass.
+/// Options of a ring of cameras around the hook, looking at the carcass. The defaults see a
+/// whole hanging lamb (up to 1.4 m): a VGA PrimeSense camera in landscape sees only 0.84 m
+/// of height at 1 m (45 degrees vertical field of view), which leaves out the hind legs and
+/// the neck, and the morph then fails; turned to portrait at 1.2 m it sees 1.33 m.
 struct RingRigOptions {
   int num_cameras = 4;
-  double radius_m = 1.0;         ///< horizontal distance from the hanging axis
-  double height_m = -0.55;       ///< camera height in the rig frame (hook at 0, z up)
-  double look_at_z_m = -0.55;    ///< height of the point on the axis the cameras look at
+  double radius_m = 1.2;         ///< horizontal distance from the hanging axis
+  double height_m = -0.62;       ///< camera height in the rig frame (hook at 0, z up)
+  double look_at_z_m = -0.62;    ///< height of the point on the axis the cameras look at
+  bool portrait = true;          ///< image columns along the vertical
   double first_azimuth_deg = 0;  ///< azimuth of camera 0 about +z
   Intrinsics intrinsics;
   std::string serial_prefix = "VB";
@@ -79,7 +83,9 @@ struct RingRigOptions {
 /// A ring of cameras evenly spread in azimuth, each looking at the hanging axis.
 RigCalibration MakeRingRig(const RingRigOptions& options);
 
-/// X_RigCam for a camera at @p p_RigCam looking at @p p_RigTarget, image "up" towards +z.
-Eigen::Isometry3d LookAt(const Eigen::Vector3d& p_RigCam, const Eigen::Vector3d& p_RigTarget);
+/// X_RigCam for a camera at @p p_RigCam looking at @p p_RigTarget, image "up" towards +z, or
+/// with @p portrait image "left" towards +z (the camera turned a quarter about its axis).
+Eigen::Isometry3d LookAt(const Eigen::Vector3d& p_RigCam, const Eigen::Vector3d& p_RigTarget,
+                         bool portrait = false);
 
 }  // namespace vb::perception

@@ -15,6 +15,7 @@ struct BenchOptions {
   std::vector<double> sigmas_mm = {0, 4, 16};
   std::uint64_t seed = 1;
   bool clouds = false;                        ///< also sampled clouds with missing regions
+  bool rig = false;  ///< full stage: also clouds fused from a 4-camera virtual rig
   std::vector<std::filesystem::path> shapes;  ///< extra closed meshes, re-posed by bends
   int shape_pairs = 5;
   std::string template_features = "levelset";  ///< levelset | mcf

@@ -19,6 +19,10 @@
 #include "perception/carcass_generator.h"
 #include "tools/bench_command.h"
 #include "tools/bench_stats.h"
+#include "perception/depth_noise.h"
+#include "perception/depth_renderer.h"
+#include "perception/fusion.h"
+#include "perception/virtual_rig.h"
 
 namespace vb::tools {
 namespace {
@@ -183,6 +187,41 @@ int RunFullBench(const BenchOptions& options) {
           std::printf("  %s sigma %g #%d failed: %s\n", input, sigma, i, row.error.c_str());
         rows.push_back(row);
       }
+    }
+  }
+
+  // The line's own input: carcasses hanging in a 4-camera virtual rig, each camera's frame
+  // rendered with the PrimeSense error model (as the virtual OpenNI2 driver renders it) and
+  // fused; sigma is the sensor model's (-1 in the table).
+  if (options.rig) {
+    const perception::RigCalibration rig = perception::MakeRingRig({});
+    perception::Fusion fusion(rig, {});
+    perception::FusedCloud cloud = fusion.MakeOutput();
+    groups.emplace_back("rig", -1);
+    for (int i = 0; i < options.pairs; ++i) {
+      const std::uint64_t seed = options.seed * 1000003 + static_cast<std::uint64_t>(i);
+      const perception::PosedCarcass truth = perception::HangCarcass(carcass, seed);
+      std::vector<std::vector<std::uint16_t>> images(rig.cameras.size());
+      std::vector<perception::DepthView> views;
+      for (std::size_t c = 0; c < rig.cameras.size(); ++c) {
+        const perception::CameraCalibration& cam = rig.cameras[c];
+        perception::DepthRenderer renderer(cam.intrinsics, cam.X_RigCam);
+        renderer.Render(truth.mesh, -2.2);
+        images[c].resize(renderer.depth_m().size());
+        perception::DepthNoise(perception::DepthNoiseOptions{}, seed * 31 + c)
+            .Apply(renderer.depth_m(), renderer.cos_incidence(), cam.intrinsics.width,
+                   cam.intrinsics.height, &images[c]);
+        views.push_back({static_cast<int>(c), images[c].data(), cam.intrinsics.width,
+                         cam.intrinsics.height});
+      }
+      fusion.Fuse(views, &cloud);
+      FullRow row = Evaluate(model, carcass.annotations, cloud.points.leftCols(cloud.size),
+                             cloud.normals.leftCols(cloud.size), truth, dense_options, nullptr);
+      row.input = "rig";
+      row.sigma_mm = -1;
+      row.index = i;
+      if (!row.ok) std::printf("  rig #%d failed: %s\n", i, row.error.c_str());
+      rows.push_back(row);
     }
   }
 

@@ -92,6 +92,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   bench_cmd->add_option("--seed", bench.seed, "Seed of the targets")->capture_default_str();
   bench_cmd->add_flag("--clouds", bench.clouds, "Also sampled clouds with missing regions");
+  bench_cmd->add_flag("--rig", bench.rig,
+                      "Full stage: also clouds fused from a 4-camera virtual rig (sensor model)");
   bench_cmd
       ->add_option("--shapes", bench.shapes,
                    "Extra closed meshes (e.g. CGAL's cow.off), re-posed by bends")

@@ -99,6 +99,9 @@ TEST_F(FusionTest, FusedCloudLiesOnTheSurfaceAndCoversWhatTheCamerasSee) {
     outward += cloud.normals.col(i).dot(normals.col(nearest)) > 0;
   }
   const double mean_mm = 1000 * sum / cloud.size;
+  int far = 0;
+  for (int i = 0; i < cloud.size; ++i) far += distance(cloud.points.col(i)) > 0.01;
+  std::printf("%d of %d fused points are more than 1 cm off the surface\n", far, cloud.size);
   EXPECT_LT(mean_mm, 3.0);
   // Normals turned towards the cameras are outward ones.
   EXPECT_GT(static_cast<double>(outward) / cloud.size, 0.97);

@@ -22,13 +22,18 @@ TEST(RigCalibrationTest, RingCamerasLookAtTheHangingAxis) {
   for (const CameraCalibration& cam : rig.cameras) {
     const Eigen::Vector3d p = cam.X_RigCam.translation();
     EXPECT_NEAR(p.head<2>().norm(), options.radius_m, 1e-12);
-    // The optical axis (z of C) points at the axis point; image down (y of C) has -z in rig.
+    // The optical axis (z of C) points at the axis point; in portrait the image's columns
+    // (x of C) run down the carcass, and its rows are horizontal.
     const Eigen::Vector3d to_target = (Eigen::Vector3d(0, 0, options.look_at_z_m) - p).normalized();
     EXPECT_NEAR(cam.X_RigCam.linear().col(2).dot(to_target), 1.0, 1e-12);
-    EXPECT_LT(cam.X_RigCam.linear().col(1).z(), 0.0);
+    EXPECT_NEAR(cam.X_RigCam.linear().col(0).z(), -1.0, 1e-12);
+    EXPECT_NEAR(cam.X_RigCam.linear().col(1).z(), 0.0, 1e-12);
     EXPECT_NEAR(cam.X_RigCam.linear().determinant(), 1.0, 1e-12);
   }
   EXPECT_EQ(rig.cameras[1].uri, "vbrig://VB0002");
+  options.portrait = false;  // landscape: image down is world down
+  for (const CameraCalibration& cam : MakeRingRig(options).cameras)
+    EXPECT_LT(cam.X_RigCam.linear().col(1).z(), -0.99);
 }
 
 TEST(RigCalibrationTest, RoundTripsThroughItsFile) {
@@ -55,9 +60,12 @@ class BadRigTest : public ::testing::Test {
     std::stringstream text;
     text << in.rdbuf();
     std::string s = text.str();
-    const std::size_t at = s.find(from);
+    // A `from` ending in '*' stands for the rest of its line.
+    const bool to_eol = from.back() == '*';
+    const std::string key = to_eol ? from.substr(0, from.size() - 1) : from;
+    const std::size_t at = s.find(key);
     ASSERT_NE(at, std::string::npos) << from;
-    s.replace(at, from.size(), to);
+    s.replace(at, to_eol ? s.find('\n', at) - at : key.size(), to);
     const auto path = dir_.Write("bad.yaml", s);
     try {
       LoadRigCalibration(path);
@@ -79,8 +87,8 @@ TEST_F(BadRigTest, NamesTheKeyAndValue) {
   ExpectRejected("resolution: [640, 480]", "resolution: [640]", "cameras[0].resolution: expected [width, height]");
   ExpectRejected("serial: VB0002", "serial: VB0001", "cameras[1].serial: 'VB0001' is empty or repeated");
   ExpectRejected("name: cam1", "name: cam0", "cameras[1].name: 'cam0' is empty or repeated");
-  ExpectRejected("rotation_wxyz: [-0.5,", "rotation_wxyz: [-1.5,", "rotation_wxyz: is not a unit quaternion");
-  ExpectRejected("translation: [1,", "translation: [abc,", "X_RigCam.translation[0]: cannot read 'abc'");
+  ExpectRejected("rotation_wxyz: *", "rotation_wxyz: [1, 1, 0, 0]", "rotation_wxyz: is not a unit quaternion");
+  ExpectRejected("translation: *", "translation: [abc, 0, 0]", "X_RigCam.translation[0]: cannot read 'abc'");
   ExpectRejected("    intrinsics:", "    intrinsicz:", "cameras[0].intrinsics: missing");
 }
 
