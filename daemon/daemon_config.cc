@@ -128,13 +128,20 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
   fusion.Int("normal_radius_voxels", 1, 4, &c.fusion.normal_radius_voxels);
 
   const Section job(r, root, "job",
-                    {"presence_min_points", "settle_sets", "min_confidence", "max_result_age_ms"});
+                    {"presence_min_points", "settle_sets", "min_confidence", "max_result_age_ms",
+                     "dump_dir"});
   job.Int("presence_min_points", 100, 2000000, &c.job.presence_min_points);
   if (c.job.presence_min_points > c.fusion.max_points)
     r.Fail(root["job"], "job.presence_min_points", "is larger than fusion.max_points");
   job.Int("settle_sets", 1, 100, &c.job.settle_sets);
   job.Double("min_confidence", 0.0, 1.0, &c.job.min_confidence);
   job.Int("max_result_age_ms", 100, 60000, &c.job.max_result_age_ms);
+  if (const YAML::Node n = job["dump_dir"]) {
+    const std::filesystem::path p(r.Scalar<std::string>(n, job.key("dump_dir")));
+    c.job.dump_dir = p.is_absolute() ? p : folder / p;
+    if (!std::filesystem::is_directory(c.job.dump_dir))
+      r.Fail(n, job.key("dump_dir"), "no folder " + c.job.dump_dir.string());
+  }
 
   const Section lcm(r, root, "lcm", {"url", "cut_lines_channel", "status_channel",
                                      "diagnostics_channel", "status_period_ms"});

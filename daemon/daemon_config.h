@@ -21,6 +21,9 @@ struct JobOptions {
   double min_confidence = 0.6;
   /// A result older than this (from the frame set it came from) is never sent to the saw.
   int max_result_age_ms = 2500;
+  /// When set, every job's fused cloud and cut lines are written here (last_fused.ply,
+  /// last_cuts.csv), replacing the previous job's: for operators and the demo's picture.
+  std::filesystem::path dump_dir;
 };
 
 struct CanOptions {

@@ -3,8 +3,10 @@
 #include <array>
 #include <chrono>
 #include <cstdio>
+#include <fstream>
 
 #include "daemon/job.h"
+#include "io/mesh_io.h"
 #include "io/saw_protocol.h"
 #include "morph/morph_carcass.h"
 
@@ -231,10 +233,30 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
   if (!publisher_->Publish(message))
     std::fprintf(stderr, "<4>virtualbutcherd: cut lines of %s not published: %s\n", id,
                  publisher_->last_error().c_str());
+  if (!config_.job.dump_dir.empty()) Dump(points, normals, result);
   std::lock_guard<std::mutex> lock(state_mutex_);
   (report.sent_to_saw ? jobs_done_ : jobs_failed_)++;
   last_ = report;
   if (reports_.size() < 1024) reports_.push_back(report);  // bounded if nobody takes them
+}
+
+void Pipeline::Dump(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
+                    const morph::CarcassResult& result) const {
+  try {
+    io::PointCloud cloud;
+    cloud.points = points;
+    cloud.normals = normals;
+    io::WriteCloud(config_.job.dump_dir / "last_fused.ply", cloud);
+    std::ofstream out(config_.job.dump_dir / "last_cuts.csv");
+    out << "cut,index,x,y,z\n";
+    for (const morph::TransferredCut& c : result.cuts)
+      for (std::size_t i = 0; i < c.line.size(); ++i)
+        out << c.name << ',' << i << ',' << c.line[i].x() << ',' << c.line[i].y() << ','
+            << c.line[i].z() << '\n';
+  } catch (const std::exception& e) {  // a full disk must not stop the line
+    std::fprintf(stderr, "<4>virtualbutcherd: cannot write to %s: %s\n",
+                 config_.job.dump_dir.c_str(), e.what());
+  }
 }
 
 bool Pipeline::Tick() {

@@ -12,6 +12,7 @@
 #include "daemon/daemon_config.h"
 #include "daemon/saw_link.h"
 #include "io/lcm_publisher.h"
+#include "morph/morph_carcass.h"
 #include "morph/template_artifact.h"
 #include "perception/fusion.h"
 #include "perception/rig_capture.h"
@@ -65,6 +66,8 @@ class Pipeline {
               std::int64_t frames_ns, std::int64_t frames_utime, double fusion_s,
               const std::string& refusal);
   void PublishStatus();
+  void Dump(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
+            const morph::CarcassResult& result) const;
   std::string StatusLineLocked() const;
 
   DaemonConfig config_;
