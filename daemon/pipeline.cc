@@ -74,7 +74,7 @@ void Pipeline::CaptureLoop() {
   std::array<perception::DepthView, perception::RigCalibration::kMaxCameras> views;
   perception::FusedCloud cloud = fusion_->MakeOutput();
   int present_sets = 0, absent_sets = 0;
-  long skipped_sets = 0;
+  long taken_readings = 0;
   bool carcass_taken = false;  // this carcass already became a job
   while (!stop_) {
     capture.Poll();
@@ -84,12 +84,6 @@ void Pipeline::CaptureLoop() {
       for (int c = 0; c < n; ++c) camera_status_[static_cast<std::size_t>(c)] = capture.status(c);
     }
     if (!perception::FrameSetReady(capture, since)) continue;
-    // While a carcass that already became a job hangs there, only its departure matters:
-    // fuse every 10th set, leaving the cores to the morph.
-    if (carcass_taken && ++skipped_sets % 10 != 0) {
-      for (int c = 0; c < n; ++c) since[static_cast<std::size_t>(c)] = capture.frame(c).sequence;
-      continue;
-    }
     int used = 0;
     std::int64_t newest_ns = 0;
     const char* down = nullptr;
@@ -103,17 +97,30 @@ void Pipeline::CaptureLoop() {
       since[static_cast<std::size_t>(c)] = f.sequence;
       newest_ns = std::max(newest_ns, f.host_time_ns);
     }
+    const std::span<const perception::DepthView> set(views.data(), static_cast<std::size_t>(used));
+    // While a carcass that already became a job hangs there, only its departure matters: a
+    // count of every 4th pixel's readings in the region of interest (under a millisecond),
+    // not a fusion, so the cores stay with the morph. It has left once the count stays under
+    // a quarter of what it was when it was taken.
+    if (carcass_taken) {
+      const long readings = fusion_->CountRoiReadings(set, 4);
+      absent_sets = readings < taken_readings / 4 ? absent_sets + 1 : 0;
+      if (absent_sets >= config_.job.settle_sets) {
+        carcass_taken = false;
+        present_sets = 0;
+      }
+      continue;
+    }
     const std::int64_t t0 = perception::MonotonicNs();
-    fusion_->Fuse({views.data(), static_cast<std::size_t>(used)}, &cloud);
+    fusion_->Fuse(set, &cloud);
     const double fusion_s = SecondsSince(t0);
     // Presence: a carcass hangs in the ROI when enough fused points are there, for
-    // settle_sets frame sets in a row; it has left after as many sets with under half.
-    const bool present = cloud.size >= config_.job.presence_min_points;
-    present_sets = present ? present_sets + 1 : 0;
-    absent_sets = cloud.size < config_.job.presence_min_points / 2 ? absent_sets + 1 : 0;
-    if (carcass_taken && absent_sets >= config_.job.settle_sets) carcass_taken = false;
-    if (carcass_taken || present_sets < config_.job.settle_sets) continue;
+    // settle_sets frame sets in a row.
+    present_sets = cloud.size >= config_.job.presence_min_points ? present_sets + 1 : 0;
+    if (present_sets < config_.job.settle_sets) continue;
     carcass_taken = true;
+    absent_sets = 0;
+    taken_readings = fusion_->CountRoiReadings(set, 4);
     std::string refusal;
     if (down != nullptr) {
       for (int c = 0; c < n; ++c)

@@ -83,6 +83,29 @@ Fusion::Fusion(const RigCalibration& rig, const FusionOptions& options) : option
   centroid_.setZero(3, o.max_points);
 }
 
+long Fusion::CountRoiReadings(std::span<const DepthView> images, int stride) const {
+  long count = 0;
+  for (const DepthView& image : images) {
+    if (image.camera < 0 || image.camera >= static_cast<int>(cameras_.size()) ||
+        image.depth_mm == nullptr)
+      continue;
+    const Camera& cam = cameras_[static_cast<std::size_t>(image.camera)];
+    if (image.width != cam.width || image.height != cam.height) continue;
+    const Eigen::Matrix3d R = cam.X_RigCam.linear();
+    const Eigen::Vector3d t = cam.X_RigCam.translation();
+    for (int v = 0; v < image.height; v += stride) {
+      for (int u = 0; u < image.width; u += stride) {
+        const std::size_t i = static_cast<std::size_t>(v) * image.width + u;
+        const double z = image.depth_mm[i] * 0.001;
+        if (z < options_.min_depth_m || z > options_.max_depth_m) continue;
+        const Eigen::Vector3d p_Rig = R * Eigen::Vector3d(cam.ray_x[i] * z, cam.ray_y[i] * z, z) + t;
+        count += options_.roi.contains(p_Rig);
+      }
+    }
+  }
+  return count;
+}
+
 FusedCloud Fusion::MakeOutput() const {
   FusedCloud out;
   out.points.setZero(3, options_.max_points);

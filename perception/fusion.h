@@ -74,6 +74,10 @@ class Fusion {
   /// Fuses @p images into @p out (which must come from MakeOutput()).
   FusionStats Fuse(std::span<const DepthView> images, FusedCloud* out);
 
+  /// Depth readings inside the region of interest, counting every @p stride-th pixel of
+  /// every image: a cheap measure of how much stands in the region (presence, departure).
+  long CountRoiReadings(std::span<const DepthView> images, int stride) const;
+
   /// An output cloud with this fusion's capacity.
   FusedCloud MakeOutput() const;
 
