@@ -50,24 +50,6 @@ class Section {
   YAML::Node node_;
 };
 
-Eigen::Isometry3d ReadPose(const io::YamlReader& r, const YAML::Node& node,
-                           const std::string& key) {
-  const Eigen::Vector3d t = r.Vector3(r.Child(node, "translation", key), key + ".translation");
-  const YAML::Node q_node = r.Child(node, "rotation_wxyz", key);
-  if (!q_node.IsSequence() || q_node.size() != 4)
-    r.Fail(q_node, key + ".rotation_wxyz", "expected a list of 4 numbers (w, x, y, z)");
-  Eigen::Quaterniond q(r.Finite(q_node[0], key + ".rotation_wxyz[0]"),
-                       r.Finite(q_node[1], key + ".rotation_wxyz[1]"),
-                       r.Finite(q_node[2], key + ".rotation_wxyz[2]"),
-                       r.Finite(q_node[3], key + ".rotation_wxyz[3]"));
-  if (std::abs(q.norm() - 1.0) > 1e-3)
-    r.Fail(q_node, key + ".rotation_wxyz", "is not a unit quaternion (norm " + std::to_string(q.norm()) + ")");
-  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
-  X.linear() = q.normalized().toRotationMatrix();
-  X.translation() = t;
-  return X;
-}
-
 }  // namespace
 
 DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
@@ -160,7 +142,7 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
   if (c.can.interface.size() > 15)
     r.Fail(root["can"]["interface"], "can.interface", "'" + c.can.interface + "' is longer than an interface name can be");
 
-  if (root["X_SawRig"]) c.X_SawRig = ReadPose(r, root["X_SawRig"], "X_SawRig");
+  if (root["X_SawRig"]) c.X_SawRig = r.Isometry(root["X_SawRig"], "X_SawRig");
   return c;
 }
 

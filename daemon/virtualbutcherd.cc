@@ -8,7 +8,6 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <thread>
 
 #include "daemon/daemon_config.h"
@@ -16,6 +15,7 @@
 #include "daemon/pipeline.h"
 #include "daemon/saw_link.h"
 #include "io/error.h"
+#include "io/process_status.h"
 #include "morph/template_artifact.h"
 
 namespace {
@@ -23,24 +23,12 @@ namespace {
 std::atomic<int> g_signal{0};
 void OnSignal(int signal) { g_signal = signal; }
 
-long ProcStatusKb(const char* field) {
-  std::FILE* f = std::fopen("/proc/self/status", "r");
-  if (f == nullptr) return -1;
-  char line[256];
-  long value = -1;
-  const std::size_t n = std::strlen(field);
-  while (std::fgets(line, sizeof(line), f) != nullptr)
-    if (std::strncmp(line, field, n) == 0 && line[n] == ':') value = std::atol(line + n + 1);
-  std::fclose(f);
-  return value;
-}
-
 void PrintReport(const vb::daemon::JobReport& r) {
   std::fprintf(stderr, "<6>virtualbutcherd: %s: %s; %d points, fusion %.3f s, morph %.3f s, "
                "send %.3f s, latency %.3f s, rss %ld KiB, peak %ld KiB\n",
                r.carcass_id.c_str(), r.sent_to_saw ? "waypoints sent" : r.status.c_str(),
                r.fused_points, r.fusion_s, r.morph_s, r.send_s, r.latency_s,
-               ProcStatusKb("VmRSS"), ProcStatusKb("VmHWM"));
+               vb::io::ProcessStatusKib("VmRSS"), vb::io::ProcessStatusKib("VmHWM"));
   for (std::size_t c = 0; c < r.planes.size(); ++c) {
     const vb::io::Plane& p = r.planes[c];
     std::fprintf(stderr,

@@ -205,26 +205,24 @@ const ArchiveReader::Section& ArchiveReader::Find(const std::string& name,
   return it->second;
 }
 
-Eigen::MatrixXd ArchiveReader::Doubles(const std::string& name, int rows) const {
-  const Section& s = Find(name, kF64);
+template <typename Matrix>
+Matrix ArchiveReader::Read(const std::string& name, std::uint8_t type, int rows) const {
+  const Section& s = Find(name, type);
   const std::uint32_t r = rows < 0 ? s.rows : static_cast<std::uint32_t>(rows);
   if (s.rows != r || (r == 0 ? s.count != 0 : s.count % r != 0))
     Fail(name, "has " + std::to_string(s.rows) + " rows, expected " + std::to_string(r));
   const Eigen::Index cols = r == 0 ? 0 : static_cast<Eigen::Index>(s.count / r);
-  Eigen::MatrixXd m(r, cols);
-  std::memcpy(m.data(), data_.data() + s.offset, s.count * sizeof(double));
+  Matrix m(r, cols);
+  std::memcpy(m.data(), data_.data() + s.offset, s.count * sizeof(typename Matrix::Scalar));
   return m;
 }
 
+Eigen::MatrixXd ArchiveReader::Doubles(const std::string& name, int rows) const {
+  return Read<Eigen::MatrixXd>(name, kF64, rows);
+}
+
 Eigen::MatrixXi ArchiveReader::Ints(const std::string& name, int rows) const {
-  const Section& s = Find(name, kI32);
-  const std::uint32_t r = rows < 0 ? s.rows : static_cast<std::uint32_t>(rows);
-  if (s.rows != r || (r == 0 ? s.count != 0 : s.count % r != 0))
-    Fail(name, "has " + std::to_string(s.rows) + " rows, expected " + std::to_string(r));
-  const Eigen::Index cols = r == 0 ? 0 : static_cast<Eigen::Index>(s.count / r);
-  Eigen::MatrixXi m(r, cols);
-  std::memcpy(m.data(), data_.data() + s.offset, s.count * sizeof(int));
-  return m;
+  return Read<Eigen::MatrixXi>(name, kI32, rows);
 }
 
 std::vector<int> ArchiveReader::IntList(const std::string& name) const {

@@ -81,6 +81,8 @@ class ArchiveReader {
     std::size_t offset = 0;  // into data_
   };
   const Section& Find(const std::string& name, std::uint8_t type) const;
+  template <typename Matrix>
+  Matrix Read(const std::string& name, std::uint8_t type, int rows) const;
 
   std::string source_;
   std::string data_;

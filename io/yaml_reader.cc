@@ -69,6 +69,22 @@ Eigen::Vector3d YamlReader::Vector3(const YAML::Node& node, const std::string& k
           Finite(node[2], key + "[2]")};
 }
 
+Eigen::Isometry3d YamlReader::Isometry(const YAML::Node& node, const std::string& key) const {
+  const Eigen::Vector3d t = Vector3(Child(node, "translation", key), key + ".translation");
+  const YAML::Node q_node = Child(node, "rotation_wxyz", key);
+  const std::string qkey = key + ".rotation_wxyz";
+  if (!q_node.IsSequence() || q_node.size() != 4)
+    Fail(q_node, qkey, "expected a list of 4 numbers (w, x, y, z)");
+  const Eigen::Quaterniond q(Finite(q_node[0], qkey + "[0]"), Finite(q_node[1], qkey + "[1]"),
+                             Finite(q_node[2], qkey + "[2]"), Finite(q_node[3], qkey + "[3]"));
+  if (std::abs(q.norm() - 1.0) > 1e-3)
+    Fail(q_node, qkey, "is not a unit quaternion (norm " + std::to_string(q.norm()) + ")");
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  X.linear() = q.normalized().toRotationMatrix();
+  X.translation() = t;
+  return X;
+}
+
 void YamlReader::ExpectFormat(const YAML::Node& root, const std::string& format,
                               int version) const {
   const auto found = Scalar<std::string>(Child(root, "format", ""), "format");

@@ -3,6 +3,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <filesystem>
 #include <string>
 
@@ -44,6 +45,9 @@ class YamlReader {
   /// A whole number in [lo, hi].
   int IntInRange(const YAML::Node& node, const std::string& key, int lo, int hi) const;
   Eigen::Vector3d Vector3(const YAML::Node& node, const std::string& key) const;
+  /// A rigid transform written as {translation: [x, y, z], rotation_wxyz: [w, x, y, z]}; the
+  /// quaternion must be unit length within 1e-3 (it is then normalised).
+  Eigen::Isometry3d Isometry(const YAML::Node& node, const std::string& key) const;
   /// Checks @p format and @p version keys at the top of @p root.
   void ExpectFormat(const YAML::Node& root, const std::string& format, int version) const;
 

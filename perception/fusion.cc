@@ -20,6 +20,15 @@ std::uint64_t Pack(std::int64_t x, std::int64_t y, std::int64_t z) {
          ((static_cast<std::uint64_t>(z) & kKeyMask) << (2 * kKeyBits));
 }
 
+struct Cell {
+  std::int64_t x, y, z;
+};
+Cell Unpack(std::uint64_t key) {
+  return {static_cast<std::int64_t>(key & kKeyMask),
+          static_cast<std::int64_t>((key >> kKeyBits) & kKeyMask),
+          static_cast<std::int64_t>((key >> (2 * kKeyBits)) & kKeyMask)};
+}
+
 std::uint64_t Mix(std::uint64_t k) {  // splitmix64 finaliser: spreads neighbouring keys
   k ^= k >> 30;
   k *= 0xbf58476d1ce4e5b9ull;
@@ -208,10 +217,7 @@ FusionStats Fusion::Fuse(std::span<const DepthView> images, FusedCloud* out) {
   const double missing = 2.0 * o.voxel_m;
   double total = 0, total_sq = 0;
   for (int i = 0; i < num_voxels_; ++i) {
-    const std::uint64_t key = keys_[static_cast<std::size_t>(i)];
-    const std::int64_t x = static_cast<std::int64_t>(key & kKeyMask);
-    const std::int64_t y = static_cast<std::int64_t>((key >> kKeyBits) & kKeyMask);
-    const std::int64_t z = static_cast<std::int64_t>((key >> (2 * kKeyBits)) & kKeyMask);
+    const auto [x, y, z] = Unpack(keys_[static_cast<std::size_t>(i)]);
     std::array<float, 26> d;
     int found = 0;
     for (int dz = -1; dz <= 1; ++dz)
@@ -247,10 +253,7 @@ FusionStats Fusion::Fuse(std::span<const DepthView> images, FusedCloud* out) {
   out->size = 0;
   for (int i = 0; i < num_voxels_; ++i) {
     if (!keep_[static_cast<std::size_t>(i)]) continue;
-    const std::uint64_t key = keys_[static_cast<std::size_t>(i)];
-    const std::int64_t x = static_cast<std::int64_t>(key & kKeyMask);
-    const std::int64_t y = static_cast<std::int64_t>((key >> kKeyBits) & kKeyMask);
-    const std::int64_t z = static_cast<std::int64_t>((key >> (2 * kKeyBits)) & kKeyMask);
+    const auto [x, y, z] = Unpack(keys_[static_cast<std::size_t>(i)]);
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     Eigen::Matrix3d second = Eigen::Matrix3d::Zero();
     int neighbours = 0;

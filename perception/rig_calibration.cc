@@ -50,25 +50,9 @@ RigCalibration LoadRigCalibration(const std::filesystem::path& path) {
 
     const std::string xkey = key + ".X_RigCam";
     const YAML::Node pose = r.Child(node, "X_RigCam", key);
-    const Eigen::Vector3d translation =
-        r.Vector3(r.Child(pose, "translation", xkey), xkey + ".translation");
-    if (translation.norm() > 100.0)
+    cam.X_RigCam = r.Isometry(pose, xkey);
+    if (cam.X_RigCam.translation().norm() > 100.0)
       r.Fail(pose["translation"], xkey + ".translation", "is more than 100 m from the rig origin");
-    const YAML::Node q_node = r.Child(pose, "rotation_wxyz", xkey);
-    if (!q_node.IsSequence() || q_node.size() != 4)
-      r.Fail(q_node, xkey + ".rotation_wxyz", "expected a list of 4 numbers (w, x, y, z)");
-    Eigen::Quaterniond q;
-    q.w() = r.Finite(q_node[0], xkey + ".rotation_wxyz[0]");
-    q.x() = r.Finite(q_node[1], xkey + ".rotation_wxyz[1]");
-    q.y() = r.Finite(q_node[2], xkey + ".rotation_wxyz[2]");
-    q.z() = r.Finite(q_node[3], xkey + ".rotation_wxyz[3]");
-    if (std::abs(q.norm() - 1.0) > 1e-3) {
-      r.Fail(q_node, xkey + ".rotation_wxyz",
-             "is not a unit quaternion (norm " + std::to_string(q.norm()) + ")");
-    }
-    cam.X_RigCam = Eigen::Isometry3d::Identity();
-    cam.X_RigCam.linear() = q.normalized().toRotationMatrix();
-    cam.X_RigCam.translation() = translation;
     rig.cameras.push_back(std::move(cam));
   }
   return rig;

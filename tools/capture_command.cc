@@ -10,6 +10,7 @@
 
 #include "io/error.h"
 #include "io/mesh_io.h"
+#include "io/process_status.h"
 #include "perception/carcass_generator.h"
 #include "perception/fusion.h"
 #include "perception/oni_recording.h"
@@ -60,15 +61,6 @@ bool NextFrameSet(RigCapture* capture, std::vector<std::uint64_t>* since,
     (*since)[static_cast<std::size_t>(c)] = f.sequence;
   }
   return true;
-}
-
-long ProcStatusKb(const char* field) {
-  std::ifstream in("/proc/self/status");
-  std::string line;
-  const std::string prefix = std::string(field) + ":";
-  while (std::getline(in, line))
-    if (line.rfind(prefix, 0) == 0) return std::atol(line.c_str() + prefix.size());
-  return -1;
 }
 
 }  // namespace
@@ -227,7 +219,7 @@ int RunCaptureBench(const CaptureBenchOptions& options) {
     const double fuse = std::chrono::duration<double, std::milli>(t1 - t0).count();
     const double interval = std::chrono::duration<double, std::milli>(t1 - last_set).count();
     last_set = t1;
-    const long rss = ProcStatusKb("VmRSS");
+    const long rss = io::ProcessStatusKib("VmRSS");
     if (set == options.warmup_sets) rss_after_warmup = rss;
     if (set < options.warmup_sets) continue;
     poll_ms.push_back(busy);
@@ -238,8 +230,8 @@ int RunCaptureBench(const CaptureBenchOptions& options) {
         << interval << ',' << cloud.size << ',' << stats.voxels << ',' << stats.outliers << ','
         << stats.pixel_stride << ',' << rss << '\n';
   }
-  const long rss_end = ProcStatusKb("VmRSS");
-  const long hwm = ProcStatusKb("VmHWM");
+  const long rss_end = io::ProcessStatusKib("VmRSS");
+  const long hwm = io::ProcessStatusKib("VmHWM");
   std::printf("capture + fusion, %zu cameras, %d frame sets after %d warm-up (%d incomplete)\n\n",
               rig.cameras.size(), static_cast<int>(total_ms.size()), options.warmup_sets, failed);
   std::printf("| measure | median | p99 | max |\n|---|---|---|---|\n");
