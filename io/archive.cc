@@ -213,7 +213,8 @@ Matrix ArchiveReader::Read(const std::string& name, std::uint8_t type, int rows)
     Fail(name, "has " + std::to_string(s.rows) + " rows, expected " + std::to_string(r));
   const Eigen::Index cols = r == 0 ? 0 : static_cast<Eigen::Index>(s.count / r);
   Matrix m(r, cols);
-  std::memcpy(m.data(), data_.data() + s.offset, s.count * sizeof(typename Matrix::Scalar));
+  if (s.count > 0)  // an empty matrix has no data pointer to copy to
+    std::memcpy(m.data(), data_.data() + s.offset, s.count * sizeof(typename Matrix::Scalar));
   return m;
 }
 
@@ -228,7 +229,7 @@ Eigen::MatrixXi ArchiveReader::Ints(const std::string& name, int rows) const {
 std::vector<int> ArchiveReader::IntList(const std::string& name) const {
   const Section& s = Find(name, kI32);
   std::vector<int> v(s.count);
-  std::memcpy(v.data(), data_.data() + s.offset, s.count * sizeof(int));
+  if (s.count > 0) std::memcpy(v.data(), data_.data() + s.offset, s.count * sizeof(int));
   return v;
 }
 

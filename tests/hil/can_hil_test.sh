@@ -28,11 +28,29 @@ if [ ! -s "$work/vm/vmlinux" ] || [ "$deb" -nt "$work/vm/vmlinux" ] || [ "$here/
   /usr/bin/python3 "$here/make-vm.py" "$deb" "$work/vm"
 fi
 
+# Part D runs virtualbutcherd itself on vcan0: a one-camera virtual rig with an empty hook
+# (no carcass: only its heartbeat and its death matter there), LCM on memq.
+vbd=$(dirname "$(dirname "$vbutcher")")/daemon/virtualbutcherd
+vbd_config=
+if [ -x "$vbd" ]; then
+  d="$work/daemon"
+  rm -rf "$d"
+  "$vbutcher" synth --out "$d/set" --count 1 --seed 1 >/dev/null
+  "$vbutcher" template compile --template "$d/set/template.ply" \
+    --annotations "$d/set/template_annotations.yaml" -o "$d/lamb.vbt" >/dev/null
+  "$vbutcher" virtual-rig --out "$d/rig" --cameras 1 --fps 5 >/dev/null
+  sed -i '/^carcass:/d' "$d/rig/scene.yaml"
+  printf '%s\n' "format: virtualbutcherd-config" "version: 1" "template: lamb.vbt" \
+    "rig: rig/rig.yaml" "virtual_scene: rig/scene.yaml" "capture: {fps: 5}" \
+    'lcm: {url: "memq://"}' "can: {interface: vcan0}" >"$d/vbd.yaml"
+  vbd_config="$d/vbd.yaml"
+fi
+
 log="$work/console.log"
 start=$(date +%s)
 timeout 1500 qemu-system-x86_64 -m 1024 -smp 2 -nographic -no-reboot \
   -kernel "$work/vm/vmlinux" -initrd "$work/vm/initramfs.cpio.gz" \
-  -append "console=ttyS0 quiet panic=-1 vbtest=$here/inside.sh vbargs=$vbutcher,$jobs" \
+  -append "console=ttyS0 quiet panic=-1 vbtest=$here/inside.sh vbargs=$vbutcher,$jobs,$vbd_config" \
   -virtfs local,path=/,mount_tag=hostroot,security_model=none,readonly=on,multidevs=remap \
   -nic none </dev/null >"$log" 2>&1 || true
 echo "HIL VM ran $(( $(date +%s) - start )) s; console in $log"
@@ -64,6 +82,17 @@ if [ -n "$killed" ] && [ -n "$stopped" ]; then
   [ $((stopped - killed)) -le 300 ] || fail "B: safe stop $((stopped - killed)) ms after the sender died"
 else
   fail "B: no safe stop after the sender was killed"
+fi
+if [ -n "$vbd_config" ]; then
+  grep -aq "HIL D .*safe stop left" "$log" || fail "D: the daemon's heartbeat never took the saw out of safe stop"
+  killed=$(field "$(line "HIL D killed_at_epoch_ms")" killed_at_epoch_ms)
+  stopped=$(field "$(line "HIL D saw-sim: .*SAFE STOP")" epoch_ms)
+  if [ -n "$killed" ] && [ -n "$stopped" ]; then
+    echo "HIL D safe stop $((stopped - killed)) ms after kill -9 of virtualbutcherd"
+    [ $((stopped - killed)) -le 300 ] || fail "D: safe stop $((stopped - killed)) ms after the daemon died"
+  else
+    fail "D: no safe stop after virtualbutcherd was killed"
+  fi
 fi
 for c in "clean 20" "duplicate 0" "bitflip 0"; do
   set -- $c

@@ -9,6 +9,7 @@ t=/run/vbhil
 mkdir -p $t
 export TMPDIR=$t
 jobs=${2:-2000}
+vbd_config=${3:-}   # a virtualbutcherd configuration on vcan0, for part D
 ip link add dev vcan0 type vcan && ip link set up vcan0
 ip link add dev vcan1 type vcan && ip link set up vcan1
 echo "HIL: vcan up"
@@ -77,4 +78,26 @@ cangw -F
 cangw -A -s vcan0 -d vcan1 -e -m XOR:D:000.0.0000000000010000   # flips one data bit
 run_c bitflip
 cangw -F
+# D. The daemon itself on vcan0: its heartbeat takes the saw out of safe stop, and kill -9 of
+# the daemon puts the saw back into safe stop within 3 heartbeat periods.
+if [ -n "$vbd_config" ]; then
+  vbd=$(dirname "$(dirname "$vb")")/daemon/virtualbutcherd
+  "$vb" saw-sim --can vcan0 --quiet >$t/sawD.log &
+  saw=$!
+  wait_for $t/sawD.log listening 60
+  "$vbd" --config "$vbd_config" >$t/vbd.log 2>&1 &
+  vbd_pid=$!
+  if wait_for $t/sawD.log "safe stop left" 120; then
+    sleep 1
+    kill -KILL $vbd_pid
+    killed=$EPOCHREALTIME
+    echo "HIL D killed_at_epoch_ms $(( ${killed/./} / 1000 ))"
+    sleep 0.6
+  else
+    sed 's/^/HIL D daemon: /' $t/vbd.log | head -20
+    kill -KILL $vbd_pid 2>/dev/null
+  fi
+  kill -TERM $saw; wait $saw
+  grep -E "SAFE STOP|safe stop left" $t/sawD.log | sed 's/^/HIL D /'
+fi
 echo "HIL done"
