@@ -25,7 +25,7 @@ TEST_F(OniRecordingTest, RecordingPlaysBackThroughOpenNi2sFileDriver) {
   capture.recovery_period_ms = 60000;
   const RecordSummary summary = RecordOni(scene_.rig, capture, record);
   ASSERT_EQ(summary.files.size(), 2u);
-  EXPECT_GE(summary.frames_seen[0], 20u);
+  EXPECT_GE(summary.frames_seen[0], 10u);  // 30 fps nominal; half under a sanitizer build
   EXPECT_TRUE(std::filesystem::file_size(summary.files[0]) > 100000);
 
   // Replay: the playback calibration's URIs are the .oni files.

