@@ -33,27 +33,34 @@ TEST_F(OniRecordingTest, RecordingPlaysBackThroughOpenNi2sFileDriver) {
   ASSERT_EQ(playback.cameras.size(), 2u);
   EXPECT_EQ(playback.cameras[1].uri, summary.files[1].string());
   RigCapture dut(playback, capture);
-  const std::int64_t end = MonotonicNs() + 2000000000;
-  while ((dut.status(0).frames < 5 || dut.status(1).frames < 5) && MonotonicNs() < end)
-    dut.Poll();
-  for (int c = 0; c < 2; ++c) {
-    ASSERT_GE(dut.status(c).frames, 5u) << c << ": " << dut.status(c).last_error;
-    const CameraCalibration& cam = playback.cameras[static_cast<std::size_t>(c)];
+  // Each camera's recording, replayed for 3 s (it loops), against a fresh noise-free render:
+  // every played frame must be exact.
+  std::vector<std::vector<std::uint16_t>> expected;
+  for (const CameraCalibration& cam : playback.cameras) {
     DepthRenderer renderer(cam.intrinsics, cam.X_RigCam);
     renderer.Render(files_.truth.mesh, scene_.floor_z_m);
     DepthNoiseOptions off;
     off.enabled = false;
-    std::vector<std::uint16_t> expected(renderer.depth_m().size());
+    expected.emplace_back(renderer.depth_m().size());
     DepthNoise(off, 1).Apply(renderer.depth_m(), renderer.cos_incidence(), cam.intrinsics.width,
-                             cam.intrinsics.height, &expected);
-    int differ = 0, max_diff = 0, first = -1;
-    for (std::size_t i = 0; i < expected.size(); ++i) {
-      const int d = std::abs(int{dut.frame(c).depth_mm[i]} - int{expected[i]});
-      if (d != 0 && first < 0) first = static_cast<int>(i);
-      differ += d != 0;
-      max_diff = std::max(max_diff, d);
+                             cam.intrinsics.height, &expected.back());
+  }
+  int exact[2] = {0, 0}, played[2] = {0, 0};
+  std::uint64_t seen[2] = {0, 0};
+  const std::int64_t end = MonotonicNs() + 3000000000;
+  while (MonotonicNs() < end) {
+    dut.Poll();
+    for (int c = 0; c < 2; ++c) {
+      if (dut.status(c).frames == seen[c]) continue;
+      seen[c] = dut.status(c).frames;
+      ++played[c];
+      exact[c] += dut.frame(c).depth_mm == expected[static_cast<std::size_t>(c)];
     }
-    EXPECT_EQ(differ, 0) << "camera " << c << ": max difference " << max_diff << " mm, first at " << first << " played " << (first >= 0 ? dut.frame(c).depth_mm[first] : 0) << " expected " << (first >= 0 ? expected[first] : 0) << " next " << (first >= 0 ? dut.frame(c).depth_mm[first + 1] : 0) << "/" << (first >= 0 ? expected[first + 1] : 0);
+  }
+  for (int c = 0; c < 2; ++c) {
+    std::printf("camera %d: %d of %d played frames equal the render\n", c, exact[c], played[c]);
+    EXPECT_GE(played[c], 30) << c;
+    EXPECT_EQ(exact[c], played[c]) << c;
   }
 }
 
