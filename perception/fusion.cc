@@ -92,25 +92,36 @@ Fusion::Fusion(const RigCalibration& rig, const FusionOptions& options) : option
   centroid_.setZero(3, o.max_points);
 }
 
+template <typename Visit>
+void Fusion::ForEachReading(const DepthView& image, int stride, Visit&& visit) const {
+  const Camera& cam = cameras_[static_cast<std::size_t>(image.camera)];
+  const Eigen::Matrix3d R = cam.X_RigCam.linear();
+  const Eigen::Vector3d t = cam.X_RigCam.translation();
+  for (int v = 0; v < image.height; v += stride) {
+    for (int u = 0; u < image.width; u += stride) {
+      const std::size_t i = static_cast<std::size_t>(v) * image.width + u;
+      const double z = image.depth_mm[i] * 0.001;
+      if (z < options_.min_depth_m || z > options_.max_depth_m) continue;
+      visit(Eigen::Vector3d(R * Eigen::Vector3d(cam.ray_x[i] * z, cam.ray_y[i] * z, z) + t));
+    }
+  }
+}
+
+bool Fusion::Fits(const DepthView& image) const {
+  if (image.camera < 0 || image.camera >= static_cast<int>(cameras_.size()) ||
+      image.depth_mm == nullptr)
+    return false;
+  const Camera& cam = cameras_[static_cast<std::size_t>(image.camera)];
+  return image.width == cam.width && image.height == cam.height;
+}
+
 long Fusion::CountRoiReadings(std::span<const DepthView> images, int stride) const {
   long count = 0;
   for (const DepthView& image : images) {
-    if (image.camera < 0 || image.camera >= static_cast<int>(cameras_.size()) ||
-        image.depth_mm == nullptr)
-      continue;
-    const Camera& cam = cameras_[static_cast<std::size_t>(image.camera)];
-    if (image.width != cam.width || image.height != cam.height) continue;
-    const Eigen::Matrix3d R = cam.X_RigCam.linear();
-    const Eigen::Vector3d t = cam.X_RigCam.translation();
-    for (int v = 0; v < image.height; v += stride) {
-      for (int u = 0; u < image.width; u += stride) {
-        const std::size_t i = static_cast<std::size_t>(v) * image.width + u;
-        const double z = image.depth_mm[i] * 0.001;
-        if (z < options_.min_depth_m || z > options_.max_depth_m) continue;
-        const Eigen::Vector3d p_Rig = R * Eigen::Vector3d(cam.ray_x[i] * z, cam.ray_y[i] * z, z) + t;
-        count += options_.roi.contains(p_Rig);
-      }
-    }
+    if (!Fits(image)) continue;
+    ForEachReading(image, stride, [&](const Eigen::Vector3d& p_Rig) {
+      count += options_.roi.contains(p_Rig);
+    });
   }
   return count;
 }
@@ -144,39 +155,36 @@ bool Fusion::Bin(std::span<const DepthView> images, int stride, FusionStats* sta
   stats->valid_readings = stats->roi_readings = 0;
   const FusionOptions& o = options_;
   const Eigen::AlignedBox3d& roi = o.roi;
+  bool fits = true;
   for (const DepthView& image : images) {
-    const Camera& cam = cameras_[static_cast<std::size_t>(image.camera)];
-    const Eigen::Matrix3d R = cam.X_RigCam.linear();
-    const Eigen::Vector3d t = cam.X_RigCam.translation();
-    for (int v = 0; v < image.height; v += stride) {
-      for (int u = 0; u < image.width; u += stride) {
-        const std::size_t i = static_cast<std::size_t>(v) * image.width + u;
-        const double z = image.depth_mm[i] * 0.001;
-        if (z < o.min_depth_m || z > o.max_depth_m) continue;
-        ++stats->valid_readings;
-        const Eigen::Vector3d p_Cam(cam.ray_x[i] * z, cam.ray_y[i] * z, z);
-        const Eigen::Vector3d p_Rig = R * p_Cam + t;
-        if (!roi.contains(p_Rig)) continue;
-        ++stats->roi_readings;
-        const std::uint64_t key = Key(p_Rig);
-        std::uint64_t slot = Mix(key) & table_mask_;
-        std::int32_t index;
-        while ((index = table_[slot]) >= 0 && keys_[static_cast<std::size_t>(index)] != key)
-          slot = (slot + 1) & table_mask_;
-        if (index < 0) {
-          if (num_voxels_ == o.max_points) return false;
-          index = num_voxels_++;
-          table_[slot] = index;
-          keys_[static_cast<std::size_t>(index)] = key;
-          sum_.col(index).setZero();
-          view_sum_.col(index).setZero();
-          count_[static_cast<std::size_t>(index)] = 0;
+    const Eigen::Vector3d p_RigCam =
+        cameras_[static_cast<std::size_t>(image.camera)].X_RigCam.translation();
+    ForEachReading(image, stride, [&](const Eigen::Vector3d& p_Rig) {
+      ++stats->valid_readings;
+      if (!fits || !roi.contains(p_Rig)) return;
+      ++stats->roi_readings;
+      const std::uint64_t key = Key(p_Rig);
+      std::uint64_t slot = Mix(key) & table_mask_;
+      std::int32_t index;
+      while ((index = table_[slot]) >= 0 && keys_[static_cast<std::size_t>(index)] != key)
+        slot = (slot + 1) & table_mask_;
+      if (index < 0) {
+        if (num_voxels_ == o.max_points) {
+          fits = false;
+          return;
         }
-        sum_.col(index) += p_Rig;
-        view_sum_.col(index) += (t - p_Rig).normalized();
-        ++count_[static_cast<std::size_t>(index)];
+        index = num_voxels_++;
+        table_[slot] = index;
+        keys_[static_cast<std::size_t>(index)] = key;
+        sum_.col(index).setZero();
+        view_sum_.col(index).setZero();
+        count_[static_cast<std::size_t>(index)] = 0;
       }
-    }
+      sum_.col(index) += p_Rig;
+      view_sum_.col(index) += (p_RigCam - p_Rig).normalized();
+      ++count_[static_cast<std::size_t>(index)];
+    });
+    if (!fits) return false;
   }
   return true;
 }
@@ -190,11 +198,7 @@ FusionStats Fusion::Fuse(std::span<const DepthView> images, FusedCloud* out) {
   std::array<DepthView, RigCalibration::kMaxCameras> usable;
   int n = 0;
   for (const DepthView& image : images) {
-    const bool known = image.camera >= 0 && image.camera < static_cast<int>(cameras_.size()) &&
-                       image.depth_mm != nullptr;
-    if (!known || n == RigCalibration::kMaxCameras ||
-        image.width != cameras_[static_cast<std::size_t>(image.camera)].width ||
-        image.height != cameras_[static_cast<std::size_t>(image.camera)].height) {
+    if (!Fits(image) || n == RigCalibration::kMaxCameras) {
       ++stats.skipped_images;
       continue;
     }

@@ -90,6 +90,10 @@ class Fusion {
     std::vector<float> ray_x, ray_y;  // (u - cx) / fx and (v - cy) / fy per pixel
   };
   bool Bin(std::span<const DepthView> images, int stride, FusionStats* stats);
+  /// Calls visit(p_Rig) for every stride-th pixel of @p image with a depth in range.
+  template <typename Visit>
+  void ForEachReading(const DepthView& image, int stride, Visit&& visit) const;
+  bool Fits(const DepthView& image) const;
   int Find(std::uint64_t key) const;
   std::uint64_t Key(const Eigen::Vector3d& p_Rig) const;
 
