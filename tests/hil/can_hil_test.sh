@@ -75,24 +75,22 @@ accepted=$(field "$verdict" clean_jobs_accepted)
 stop_a=$(line "HIL A saw-sim: .*SAFE STOP")
 after=$(sed -n 's/.*SAFE STOP \([0-9]*\) ms after the last heartbeat.*/\1/p' <<<"$stop_a")
 [ -n "$after" ] && [ "$after" -le 300 ] || fail "A: no safe stop within 300 ms of the last heartbeat: $stop_a"
-killed=$(field "$(line "HIL B killed_at_epoch_ms")" killed_at_epoch_ms)
-stopped=$(field "$(line "HIL B saw-sim: .*SAFE STOP")" epoch_ms)
-if [ -n "$killed" ] && [ -n "$stopped" ]; then
-  echo "HIL B safe stop $((stopped - killed)) ms after kill -9 of the sender"
-  [ $((stopped - killed)) -le 300 ] || fail "B: safe stop $((stopped - killed)) ms after the sender died"
-else
-  fail "B: no safe stop after the sender was killed"
-fi
+# stop_after_kill <part> <who>: the saw's safe stop within 3 heartbeat periods of kill -9.
+stop_after_kill() {
+  local killed stopped
+  killed=$(field "$(line "HIL $1 killed_at_epoch_ms")" killed_at_epoch_ms)
+  stopped=$(field "$(line "HIL $1 saw-sim: .*SAFE STOP")" epoch_ms)
+  if [ -n "$killed" ] && [ -n "$stopped" ]; then
+    echo "HIL $1 safe stop $((stopped - killed)) ms after kill -9 of $2"
+    [ $((stopped - killed)) -le 300 ] || fail "$1: safe stop $((stopped - killed)) ms after $2 died"
+  else
+    fail "$1: no safe stop after $2 was killed"
+  fi
+}
+stop_after_kill B "the sender"
 if [ -n "$vbd_config" ]; then
   grep -aq "HIL D .*safe stop left" "$log" || fail "D: the daemon's heartbeat never took the saw out of safe stop"
-  killed=$(field "$(line "HIL D killed_at_epoch_ms")" killed_at_epoch_ms)
-  stopped=$(field "$(line "HIL D saw-sim: .*SAFE STOP")" epoch_ms)
-  if [ -n "$killed" ] && [ -n "$stopped" ]; then
-    echo "HIL D safe stop $((stopped - killed)) ms after kill -9 of virtualbutcherd"
-    [ $((stopped - killed)) -le 300 ] || fail "D: safe stop $((stopped - killed)) ms after the daemon died"
-  else
-    fail "D: no safe stop after virtualbutcherd was killed"
-  fi
+  stop_after_kill D virtualbutcherd
 fi
 for c in "clean 20" "duplicate 0" "bitflip 0"; do
   set -- $c
