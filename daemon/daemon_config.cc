@@ -57,8 +57,9 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
   const io::YamlReader r(path.string());
   r.ExpectFormat(root, "virtualbutcherd-config", DaemonConfig::kFormatVersion);
   for (const auto& entry : root) {
-    static const char* kTop[] = {"format", "version", "template", "rig", "virtual_scene",
-                                 "capture", "fusion", "job", "lcm", "can", "X_SawRig"};
+    static const char* kTop[] = {"format",        "version", "template", "rig",
+                                 "virtual_scene", "capture", "fusion",   "job",
+                                 "morph",         "lcm",     "can",      "X_SawRig"};
     const std::string k = entry.first.as<std::string>();
     bool known = false;
     for (const char* allowed : kTop) known |= k == allowed;
@@ -93,12 +94,13 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
         r.Scalar<bool>(capture["register_depth_to_color"], capture.key("register_depth_to_color"));
 
   const Section fusion(r, root, "fusion",
-                       {"roi_min", "roi_max", "voxel_m", "max_points", "min_depth_m",
-                        "max_depth_m", "sor_k", "sor_std_ratio", "normal_radius_voxels"});
+                       {"roi_min", "roi_max", "voxel_m", "max_points", "min_depth_m", "max_depth_m",
+                        "sor_k", "sor_std_ratio", "normal_radius_voxels"});
   if (fusion["roi_min"]) c.fusion.roi.min() = r.Vector3(fusion["roi_min"], fusion.key("roi_min"));
   if (fusion["roi_max"]) c.fusion.roi.max() = r.Vector3(fusion["roi_max"], fusion.key("roi_max"));
   if (c.fusion.roi.isEmpty() || (c.fusion.roi.sizes().array() > 20.0).any())
-    r.Fail(root["fusion"], "fusion.roi_min/roi_max", "the region of interest is empty or over 20 m");
+    r.Fail(root["fusion"], "fusion.roi_min/roi_max",
+           "the region of interest is empty or over 20 m");
   fusion.Double("voxel_m", 0.001, 0.1, &c.fusion.voxel_m);
   fusion.Int("max_points", 1000, 2000000, &c.fusion.max_points);
   fusion.Double("min_depth_m", 0.1, 10.0, &c.fusion.min_depth_m);
@@ -110,12 +112,13 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
   fusion.Int("normal_radius_voxels", 1, 4, &c.fusion.normal_radius_voxels);
 
   const Section job(r, root, "job",
-                    {"presence_min_points", "settle_sets", "min_confidence", "max_result_age_ms",
-                     "dump_dir"});
+                    {"presence_min_points", "settle_sets", "max_border_readings", "min_confidence",
+                     "max_result_age_ms", "dump_dir"});
   job.Int("presence_min_points", 100, 2000000, &c.job.presence_min_points);
   if (c.job.presence_min_points > c.fusion.max_points)
     r.Fail(root["job"], "job.presence_min_points", "is larger than fusion.max_points");
   job.Int("settle_sets", 1, 100, &c.job.settle_sets);
+  job.Int("max_border_readings", 0, 10000000, &c.job.max_border_readings);
   job.Double("min_confidence", 0.0, 1.0, &c.job.min_confidence);
   job.Int("max_result_age_ms", 100, 60000, &c.job.max_result_age_ms);
   if (const YAML::Node n = job["dump_dir"]) {
@@ -125,8 +128,24 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
       r.Fail(n, job.key("dump_dir"), "no folder " + c.job.dump_dir.string());
   }
 
-  const Section lcm(r, root, "lcm", {"url", "cut_lines_channel", "status_channel",
-                                     "diagnostics_channel", "status_period_ms"});
+  const Section morph_section(r, root, "morph", {"template_up", "rig_up", "max_tilt_deg"});
+  if (morph_section["template_up"] || morph_section["rig_up"] || morph_section["max_tilt_deg"]) {
+    morph::UprightPrior upright;
+    for (const char* key : {"template_up", "rig_up"}) {
+      if (!morph_section[key])
+        r.Fail(root["morph"], morph_section.key(key), "is needed with the other upright keys");
+      const Eigen::Vector3d v = r.Vector3(morph_section[key], morph_section.key(key));
+      if (!(v.norm() > 1e-6))
+        r.Fail(morph_section[key], morph_section.key(key), "must not be zero");
+      (std::string(key) == "rig_up" ? upright.target_up : upright.template_up) = v.normalized();
+    }
+    morph_section.Double("max_tilt_deg", 1.0, 180.0, &upright.max_tilt_deg);
+    c.morph.upright = upright;
+  }
+
+  const Section lcm(
+      r, root, "lcm",
+      {"url", "cut_lines_channel", "status_channel", "diagnostics_channel", "status_period_ms"});
   lcm.String("url", &c.lcm.url);
   lcm.String("cut_lines_channel", &c.lcm.channels.cut_lines);
   lcm.String("status_channel", &c.lcm.channels.status);
@@ -140,7 +159,8 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
   can.String("interface", &c.can.interface);
   can.Int("send_deadline_ms", 1, 1000, &c.can.send_deadline_ms);
   if (c.can.interface.size() > 15)
-    r.Fail(root["can"]["interface"], "can.interface", "'" + c.can.interface + "' is longer than an interface name can be");
+    r.Fail(root["can"]["interface"], "can.interface",
+           "'" + c.can.interface + "' is longer than an interface name can be");
 
   if (root["X_SawRig"]) c.X_SawRig = r.Isometry(root["X_SawRig"], "X_SawRig");
   return c;

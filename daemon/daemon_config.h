@@ -2,9 +2,11 @@
 
 #include <Eigen/Geometry>
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include "io/lcm_publisher.h"
+#include "morph/coarse_alignment.h"
 #include "perception/fusion.h"
 #include "perception/rig_calibration.h"
 #include "perception/rig_capture.h"
@@ -17,6 +19,11 @@ struct JobOptions {
   int presence_min_points = 5000;
   /// Consecutive frame sets with a carcass before its cloud is trusted (it swings in).
   int settle_sets = 3;
+  /// More fused readings than this on the outermost pixels of the images (FusionStats::
+  /// border_readings) mean the carcass goes on beyond a camera's view: refused, since the
+  /// morph would stretch the template over what it cannot see. Keep the gambrel and rail
+  /// out of the region of interest.
+  int max_border_readings = 200;
   /// Below this every cut's confidence must reach, the saw gets no waypoints.
   double min_confidence = 0.6;
   /// A result older than this (from the frame set it came from) is never sent to the saw.
@@ -24,6 +31,13 @@ struct JobOptions {
   /// When set, every job's fused cloud and cut lines are written here (last_fused.ply,
   /// last_cuts.csv), replacing the previous job's: for operators and the demo's picture.
   std::filesystem::path dump_dir;
+};
+
+/// What the morph may assume on the line.
+struct MorphSection {
+  /// Carcasses hang from the gambrel: when set, only placements of the template whose up
+  /// direction (template frame) lies within max_tilt_deg of the rig's up are considered.
+  std::optional<morph::UprightPrior> upright;
 };
 
 struct CanOptions {
@@ -53,6 +67,7 @@ struct DaemonConfig {
   perception::CaptureOptions capture;
   perception::FusionOptions fusion;
   JobOptions job;
+  MorphSection morph;
   LcmOptions lcm;
   CanOptions can;
   /// Pose of the rig frame in the saw frame: waypoints go out as p_Saw = X_SawRig p_Rig.

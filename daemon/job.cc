@@ -30,7 +30,8 @@ vbutcher::cut_lines_t MakeCutLines(const morph::CarcassResult& result,
     out.coverage = static_cast<float>(cut.coverage);
     out.confidence = static_cast<float>(std::clamp(cut.confidence, 0.0, 1.0));
     for (const Eigen::Vector3d& p : cut.line)
-      out.line.push_back({static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())});
+      out.line.push_back(
+          {static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())});
     out.num_points = static_cast<std::int16_t>(std::min<std::size_t>(out.line.size(), 32767));
     out.line.resize(static_cast<std::size_t>(out.num_points));
     m.cuts.push_back(std::move(out));
@@ -64,14 +65,17 @@ std::string MakeSawJob(const morph::CarcassResult& result, const Eigen::Isometry
       char why[160];
       std::snprintf(why, sizeof(why), "cut %s confidence %.2f is below %.2f", cut.name.c_str(),
                     cut.confidence, min_confidence);
+      if (!result.check.concern.empty()) return std::string(why) + ": " + result.check.concern;
       return why;
     }
     if (cut.line.size() < 2) return "cut " + cut.name + " has no line";
     io::saw::Job::Cut& out = job->cuts[static_cast<std::size_t>(job->num_cuts++)];
-    out.confidence_percent = static_cast<std::uint8_t>(std::lround(100 * std::clamp(cut.confidence, 0.0, 1.0)));
+    out.confidence_percent =
+        static_cast<std::uint8_t>(std::lround(100 * std::clamp(cut.confidence, 0.0, 1.0)));
     const int n = std::min<int>(io::saw::kMaxWaypoints, static_cast<int>(cut.line.size()));
     for (int i = 0; i < n; ++i) {
-      const std::size_t k = static_cast<std::size_t>(i) * cut.line.size() / static_cast<std::size_t>(n);
+      const std::size_t k =
+          static_cast<std::size_t>(i) * cut.line.size() / static_cast<std::size_t>(n);
       const Eigen::Vector3d& p = cut.line[k];
       const Eigen::Vector3d p_Rig = p - cut.plane.normal * cut.plane.SignedDistance(p);
       const Eigen::Vector3d p_Saw = X_SawRig * p_Rig;

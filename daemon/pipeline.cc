@@ -45,6 +45,7 @@ std::int8_t LcmHealth(perception::CameraHealth h) {
 Pipeline::Pipeline(const DaemonConfig& config, morph::TemplateArtifact artifact,
                    io::Publisher* publisher, SawLink* saw)
     : config_(config), artifact_(std::move(artifact)), publisher_(publisher), saw_(saw) {
+  morph_options_.coarse.upright = config_.morph.upright;
   fusion_ = std::make_unique<perception::Fusion>(config_.rig, config_.fusion);
   slot_cloud_ = fusion_->MakeOutput();
   camera_status_.resize(config_.rig.cameras.size());
@@ -112,7 +113,7 @@ void Pipeline::CaptureLoop() {
       continue;
     }
     const std::int64_t t0 = perception::MonotonicNs();
-    fusion_->Fuse(set, &cloud);
+    const perception::FusionStats stats = fusion_->Fuse(set, &cloud);
     const double fusion_s = SecondsSince(t0);
     // Presence: a carcass hangs in the ROI when enough fused points are there, for
     // settle_sets frame sets in a row.
@@ -129,6 +130,14 @@ void Pipeline::CaptureLoop() {
                     perception::ToString(capture.status(c).health);
           break;
         }
+    }
+    if (refusal.empty() && stats.border_readings > config_.job.max_border_readings) {
+      char why[160];
+      std::snprintf(why, sizeof(why),
+                    "the carcass goes on beyond the cameras' view (%ld readings on image "
+                    "borders, limit %d)",
+                    stats.border_readings, config_.job.max_border_readings);
+      refusal = why;
     }
     {
       std::lock_guard<std::mutex> lock(slot_mutex_);
@@ -155,7 +164,8 @@ void Pipeline::JobLoop() {
     {
       std::unique_lock<std::mutex> lock(slot_mutex_);
       job_alive_ns_ = perception::MonotonicNs();
-      slot_cv_.wait_for(lock, std::chrono::milliseconds(200), [this] { return slot_full_ || stop_; });
+      slot_cv_.wait_for(lock, std::chrono::milliseconds(200),
+                        [this] { return slot_full_ || stop_; });
       job_alive_ns_ = perception::MonotonicNs();
       if (stop_ || !slot_full_) continue;
       points = slot_cloud_.points.leftCols(slot_cloud_.size);
@@ -192,7 +202,8 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
   // A refused carcass (a camera down) is not morphed at all: a missing cut is recoverable.
   morph::CarcassResult result;
   if (refusal.empty()) {
-    result = morph::MorphCarcass(artifact_.model, artifact_.annotations, points, normals);
+    result = morph::MorphCarcass(artifact_.model, artifact_.annotations, points, normals,
+                                 morph_options_);
   } else {
     result.error = refusal;
   }
@@ -203,14 +214,13 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
     report.planes.push_back(cut.plane);
   }
 
-  JobIdentity identity{report.carcass_id, number, artifact_.template_id,
-                       artifact_.template_version, frames_utime};
+  JobIdentity identity{report.carcass_id, number, artifact_.template_id, artifact_.template_version,
+                       frames_utime};
   vbutcher::cut_lines_t message = MakeCutLines(result, artifact_.annotations, identity);
   io::saw::Job job;
   std::string why = refusal.empty() ? MakeSawJob(result, config_.X_SawRig,
-                                                 config_.job.min_confidence, number, sequence,
-                                                 &job)
-                                      : refusal;
+                                                 config_.job.min_confidence, number, sequence, &job)
+                                    : refusal;
   // Never a stale command: a result that took too long is not sent.
   const double age_s = SecondsSince(frames_ns);
   if (why.empty() && age_s * 1000 > config_.job.max_result_age_ms) {
@@ -277,9 +287,12 @@ bool Pipeline::Tick() {
       degraded |= s.health != perception::CameraHealth::kOk;
   }
   io::saw::DaemonState state = io::saw::DaemonState::kReady;
-  if (!capture_ok || !job_ok) state = io::saw::DaemonState::kFault;
-  else if (degraded) state = io::saw::DaemonState::kDegraded;
-  else if (busy_) state = io::saw::DaemonState::kBusy;
+  if (!capture_ok || !job_ok)
+    state = io::saw::DaemonState::kFault;
+  else if (degraded)
+    state = io::saw::DaemonState::kDegraded;
+  else if (busy_)
+    state = io::saw::DaemonState::kBusy;
   io::saw::Frame heartbeat = io::saw::Encode(io::saw::Heartbeat{state, uptime_ms_});
   static thread_local io::saw::Protector protector;
   protector.Protect(&heartbeat);

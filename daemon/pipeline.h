@@ -72,6 +72,7 @@ class Pipeline {
 
   DaemonConfig config_;
   morph::TemplateArtifact artifact_;
+  morph::MorphOptions morph_options_;
   io::Publisher* publisher_;
   SawLink* saw_;
   std::unique_ptr<perception::RigCapture> capture_;

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <limits>
+#include <numbers>
 
 #include "io/error.h"
 #include "io/mesh_measures.h"
@@ -93,17 +94,48 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     const Eigen::Matrix3Xd template_samples = EveryNth(model.V, options.verification_samples);
     const Eigen::Matrix3Xd target_samples = EveryNth(target, options.verification_samples);
     const PointIndex target_index(target);
+    double cos_tilt = -1.0;
+    Eigen::Vector3d template_up = Eigen::Vector3d::UnitZ(), target_up = Eigen::Vector3d::UnitZ();
+    if (options.upright) {
+      template_up = options.upright->template_up.normalized();
+      target_up = options.upright->target_up.normalized();
+      cos_tilt = std::cos(options.upright->max_tilt_deg * std::numbers::pi / 180.0);
+    }
+    std::vector<double> disagreements;
     double best = std::numeric_limits<double>::infinity();
     for (const Association& candidate : candidates) {
-      const double disagreement = SurfaceDisagreement(template_samples, target_samples,
-                                                      target_index, target, candidate.from_to);
-      if (disagreement < best) {
-        best = disagreement;
+      if ((candidate.from_to.R * template_up).dot(target_up) < cos_tilt) {
+        disagreements.push_back(std::numeric_limits<double>::infinity());
+        continue;
+      }
+      disagreements.push_back(SurfaceDisagreement(template_samples, target_samples, target_index,
+                                                  target, candidate.from_to));
+      if (disagreements.back() < best) {
+        best = disagreements.back();
         result.association = candidate;
       }
     }
+    const double scale = result.association.from_to.scale;  // target units per template size
+    result.disagreement = best / scale;
+    result.runner_up_disagreement = std::numeric_limits<double>::infinity();
+    const double cos_distinct = std::cos(options.distinct_angle_deg * std::numbers::pi / 180.0);
+    for (std::size_t k = 0; k < candidates.size(); ++k) {
+      const Eigen::Matrix3d relative =
+          candidates[k].from_to.R * result.association.from_to.R.transpose();
+      const double cos_angle = 0.5 * (relative.trace() - 1.0);
+      if (cos_angle < cos_distinct)
+        result.runner_up_disagreement =
+            std::min(result.runner_up_disagreement, disagreements[k] / scale);
+    }
   }
   result.association_seconds = Since(phase);
+  if (!result.association.ok && !candidates.empty() && options.upright) {
+    result.error = "feature association failed: none of " + std::to_string(candidates.size()) +
+                   " candidate placements is within " +
+                   std::to_string(static_cast<int>(options.upright->max_tilt_deg)) +
+                   " degrees of upright";
+    return result;
+  }
   if (!result.association.ok) {
     result.error = "feature association failed: template has " +
                    std::to_string(model.features.num_terminals()) + " terminals and " +

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <optional>
 #include <string>
 
 #include "io/triangle_mesh.h"
@@ -12,6 +13,16 @@
 
 namespace vb::morph {
 
+/// What the line knows about how a carcass hangs: the template's up direction (its frame)
+/// must map to within max_tilt_deg of the target's up (the rig frame). Placements outside
+/// are not considered, which rules out upside-down fits of a carcass that lost a limb to
+/// occlusion.
+struct UprightPrior {
+  Eigen::Vector3d template_up = Eigen::Vector3d::UnitZ();
+  Eigen::Vector3d target_up = Eigen::Vector3d::UnitZ();
+  double max_tilt_deg = 45.0;
+};
+
 struct CoarseOptions {
   CloudSkeletonOptions skeleton;
   /// For the target's skeleton, fractions of the target's size. Level-set branches run to
@@ -21,6 +32,10 @@ struct CoarseOptions {
   AssociationOptions association;
   /// Samples per side when checking candidate pairings against the surfaces.
   int verification_samples = 400;
+  /// Without it, any orientation (the method's default: targets come in any pose).
+  std::optional<UprightPrior> upright;
+  /// Candidates whose rotations differ by more than this are different placements.
+  double distinct_angle_deg = 30.0;
   EmbeddedDeformationOptions deformation;
 };
 
@@ -37,6 +52,12 @@ struct CoarseResult {
   /// The node transforms found, in the template's normalised frame; the dense stage goes on
   /// from them.
   DeformationState state;
+  /// Surface disagreement (mean closest-point distance both ways, template sizes) of the
+  /// chosen placement, and the least disagreement of a candidate turned at least
+  /// CoarseOptions::distinct_angle_deg away from it (infinity when there is none). Close
+  /// values mean the skeletons and surfaces could not tell two placements apart.
+  double disagreement = 0.0;
+  double runner_up_disagreement = 0.0;
   double skeleton_seconds = 0.0;
   double association_seconds = 0.0;
   double deformation_seconds = 0.0;

@@ -133,6 +133,9 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     info.mean_plane_distance /= static_cast<double>(constraints.size());
 
     EmbeddedDeformationOptions deformation = options.deformation;
+    const double stiffness = std::pow(options.stiffness_decay, round);
+    deformation.w_rot *= stiffness;
+    deformation.w_reg *= stiffness;
     deformation.w_data *= noise_factor * static_cast<double>(model.graph.num_nodes()) /
                           static_cast<double>(constraints.size());
     info.deformation =

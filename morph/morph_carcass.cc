@@ -6,21 +6,27 @@
 namespace vb::morph {
 
 CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& annotations,
-                           const Eigen::Matrix3Xd& target, const Eigen::Matrix3Xd& normals) {
+                           const Eigen::Matrix3Xd& target, const Eigen::Matrix3Xd& normals,
+                           const MorphOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   CarcassResult r;
   try {
-    r.coarse = AlignCoarse(model, target);
+    r.coarse = AlignCoarse(model, target, options.coarse);
     if (!r.coarse.ok) {
       r.error = "coarse stage: " + r.coarse.error;
     } else {
-      r.dense = AlignDense(model, r.coarse, target, normals);
+      r.dense = AlignDense(model, r.coarse, target, normals, options.dense);
       if (!r.dense.ok) {
         r.error = "dense stage: " + r.dense.error;
       } else {
-        r.cuts = TransferCuts(annotations, model.mesh, r.dense.mesh, target,
-                              r.dense.target_normals, r.coarse.template_to_target.scale);
-        r.parts = CutParts(r.dense.mesh, r.cuts);
+        const auto phase = std::chrono::steady_clock::now();
+        r.check = CheckMorph(model, r.coarse, r.dense, target, options.check);
+        r.cuts = TransferCuts(annotations, model.mesh, r.dense.mesh, target, r.dense.target_normals,
+                              r.coarse.template_to_target.scale, options.cuts);
+        for (TransferredCut& cut : r.cuts) cut.confidence *= r.check.confidence;
+        if (!r.cuts.empty()) r.parts = CutParts(r.dense.mesh, r.cuts);
+        r.cuts_seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - phase).count();
         r.ok = true;
       }
     }

@@ -9,9 +9,17 @@
 #include "morph/coarse_alignment.h"
 #include "morph/cut_transfer.h"
 #include "morph/dense_alignment.h"
+#include "morph/morph_check.h"
 #include "morph/template_model.h"
 
 namespace vb::morph {
+
+struct MorphOptions {
+  CoarseOptions coarse;
+  DenseOptions dense;
+  CutTransferOptions cuts;
+  MorphCheckOptions check;
+};
 
 /// One carcass through the whole method: coarse posture, dense surface, cut transfer and
 /// virtual cutting.
@@ -20,14 +28,18 @@ struct CarcassResult {
   std::string error;  ///< why not, when !ok
   CoarseResult coarse;
   DenseResult dense;
+  /// The morph as a whole; every cut's confidence already includes check.confidence.
+  MorphCheck check;
   std::vector<TransferredCut> cuts;
   std::vector<io::PartMeasure> parts;  ///< in the annotations' part order
+  double cuts_seconds = 0;             ///< check, cut transfer and virtual cutting
   double seconds = 0;
 };
 
 /// Morphs @p model onto @p target (points and, optionally, unit normals of the same count)
 /// and carries @p annotations over. Never throws on a bad target: the result says why.
 CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& annotations,
-                           const Eigen::Matrix3Xd& target, const Eigen::Matrix3Xd& normals);
+                           const Eigen::Matrix3Xd& target, const Eigen::Matrix3Xd& normals,
+                           const MorphOptions& options = {});
 
 }  // namespace vb::morph

@@ -89,7 +89,7 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
 
 void WriteCutsReport(const std::filesystem::path& path, const io::Annotations& annotations,
                      const std::vector<TransferredCut>& cuts,
-                     const std::vector<io::PartMeasure>& parts) {
+                     const std::vector<io::PartMeasure>& parts, const MorphCheck& check) {
   nlohmann::json j;
   j["format"] = "vbutcher-cuts";
   j["version"] = 1;
@@ -107,6 +107,11 @@ void WriteCutsReport(const std::filesystem::path& path, const io::Annotations& a
          {"confidence", c.confidence},
          {"line", line}});
   }
+  j["check"] = {{"ambiguity", check.ambiguity},
+                {"unexplained", check.unexplained},
+                {"stretch", check.stretch},
+                {"confidence", check.confidence},
+                {"concern", check.concern}};
   j["cuts"] = out_cuts;
   nlohmann::json out_parts = nlohmann::json::array();
   for (std::size_t k = 0; k < parts.size(); ++k) {

@@ -8,6 +8,7 @@
 #include "morph/coarse_alignment.h"
 #include "morph/cut_transfer.h"
 #include "morph/dense_alignment.h"
+#include "morph/morph_check.h"
 #include "morph/template_model.h"
 
 namespace vb::morph {
@@ -21,10 +22,10 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
 
 /// Writes the transferred cuts as JSON (target units and frame): per cut its name, plane
 /// (point, unit normal towards the part before it), fit RMS, coverage, gap, confidence and
-/// the cut line; per part its name, volume and outer area.
+/// the cut line; per part its name, volume and outer area; the whole-morph check.
 /// @throws std::runtime_error when the file cannot be written.
 void WriteCutsReport(const std::filesystem::path& path, const io::Annotations& annotations,
                      const std::vector<TransferredCut>& cuts,
-                     const std::vector<io::PartMeasure>& parts);
+                     const std::vector<io::PartMeasure>& parts, const MorphCheck& check);
 
 }  // namespace vb::morph

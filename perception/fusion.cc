@@ -97,12 +97,17 @@ void Fusion::ForEachReading(const DepthView& image, int stride, Visit&& visit) c
   const Camera& cam = cameras_[static_cast<std::size_t>(image.camera)];
   const Eigen::Matrix3d R = cam.X_RigCam.linear();
   const Eigen::Vector3d t = cam.X_RigCam.translation();
+  // Readings this close to the image's edge (in pixels, at least one stride) are border
+  // readings: an object there may go on beyond the camera's view.
+  const int margin = std::max(kBorderPixels, stride);
   for (int v = 0; v < image.height; v += stride) {
+    const bool border_row = v < margin || v >= image.height - margin;
     for (int u = 0; u < image.width; u += stride) {
       const std::size_t i = static_cast<std::size_t>(v) * image.width + u;
       const double z = image.depth_mm[i] * 0.001;
       if (z < options_.min_depth_m || z > options_.max_depth_m) continue;
-      visit(Eigen::Vector3d(R * Eigen::Vector3d(cam.ray_x[i] * z, cam.ray_y[i] * z, z) + t));
+      visit(Eigen::Vector3d(R * Eigen::Vector3d(cam.ray_x[i] * z, cam.ray_y[i] * z, z) + t),
+            border_row || u < margin || u >= image.width - margin);
     }
   }
 }
@@ -119,7 +124,7 @@ long Fusion::CountRoiReadings(std::span<const DepthView> images, int stride) con
   long count = 0;
   for (const DepthView& image : images) {
     if (!Fits(image)) continue;
-    ForEachReading(image, stride, [&](const Eigen::Vector3d& p_Rig) {
+    ForEachReading(image, stride, [&](const Eigen::Vector3d& p_Rig, bool) {
       count += options_.roi.contains(p_Rig);
     });
   }
@@ -152,17 +157,18 @@ int Fusion::Find(std::uint64_t key) const {
 bool Fusion::Bin(std::span<const DepthView> images, int stride, FusionStats* stats) {
   std::fill(table_.begin(), table_.end(), -1);
   num_voxels_ = 0;
-  stats->valid_readings = stats->roi_readings = 0;
+  stats->valid_readings = stats->roi_readings = stats->border_readings = 0;
   const FusionOptions& o = options_;
   const Eigen::AlignedBox3d& roi = o.roi;
   bool fits = true;
   for (const DepthView& image : images) {
     const Eigen::Vector3d p_RigCam =
         cameras_[static_cast<std::size_t>(image.camera)].X_RigCam.translation();
-    ForEachReading(image, stride, [&](const Eigen::Vector3d& p_Rig) {
+    ForEachReading(image, stride, [&](const Eigen::Vector3d& p_Rig, bool border) {
       ++stats->valid_readings;
       if (!fits || !roi.contains(p_Rig)) return;
       ++stats->roi_readings;
+      stats->border_readings += border;
       const std::uint64_t key = Key(p_Rig);
       std::uint64_t slot = Mix(key) & table_mask_;
       std::int32_t index;

@@ -14,10 +14,10 @@ namespace vb::perception {
 struct FusionOptions {
   /// Region of interest around the hook, rig frame (m): everything else is cropped.
   Eigen::AlignedBox3d roi{Eigen::Vector3d(-0.6, -0.6, -1.6), Eigen::Vector3d(0.6, 0.6, 0.1)};
-  double voxel_m = 0.006;        ///< voxel-grid cell size
-  int max_points = 60000;        ///< fused-cloud budget (voxels kept)
-  double min_depth_m = 0.3;      ///< readings nearer than this are ignored
-  double max_depth_m = 4.0;      ///< and farther than this
+  double voxel_m = 0.006;    ///< voxel-grid cell size
+  int max_points = 60000;    ///< fused-cloud budget (voxels kept)
+  double min_depth_m = 0.3;  ///< readings nearer than this are ignored
+  double max_depth_m = 4.0;  ///< and farther than this
   /// Statistical outlier removal: mean distance to the sor_k nearest fused points within
   /// the 3 x 3 x 3 voxel block; points beyond mean + sor_std_ratio * std are removed.
   int sor_k = 6;
@@ -48,15 +48,18 @@ struct FusedCloud {
 
 /// What one Fuse() call did, for status and benchmarks.
 struct FusionStats {
-  int images = 0;             ///< depth images used
-  int skipped_images = 0;     ///< images refused (unknown camera or wrong size)
-  long valid_readings = 0;    ///< pixels with a depth in range
-  long roi_readings = 0;      ///< of those, inside the region of interest
-  int voxels = 0;             ///< occupied voxels
-  int outliers = 0;           ///< removed by the statistical filter
-  int no_normal = 0;          ///< removed for too few neighbours to fit a normal
-  int pixel_stride = 1;       ///< > 1 when the budget forced decimation
-  bool truncated = false;     ///< still over budget at the coarsest decimation
+  int images = 0;           ///< depth images used
+  int skipped_images = 0;   ///< images refused (unknown camera or wrong size)
+  long valid_readings = 0;  ///< pixels with a depth in range
+  long roi_readings = 0;    ///< of those, inside the region of interest
+  /// Of those, on an image's outermost pixels (Fusion::kBorderPixels): the object in the
+  /// region of interest goes on beyond a camera's view, so the cloud misses part of it.
+  long border_readings = 0;
+  int voxels = 0;          ///< occupied voxels
+  int outliers = 0;        ///< removed by the statistical filter
+  int no_normal = 0;       ///< removed for too few neighbours to fit a normal
+  int pixel_stride = 1;    ///< > 1 when the budget forced decimation
+  bool truncated = false;  ///< still over budget at the coarsest decimation
 };
 
 /// Fuses depth images of a calibrated rig into one cloud within a fixed memory budget:
@@ -67,6 +70,8 @@ struct FusionStats {
 /// memory. Not thread safe: owns its scratch.
 class Fusion {
  public:
+  /// Width of the frame of pixels along each image edge whose readings count as border.
+  static constexpr int kBorderPixels = 3;
   /// @throws InputError when the options are unusable (voxel size, budget, ROI too large
   ///   for the voxel grid) or the rig has a camera larger than @p max_width x @p max_height.
   Fusion(const RigCalibration& rig, const FusionOptions& options);
@@ -90,7 +95,7 @@ class Fusion {
     std::vector<float> ray_x, ray_y;  // (u - cx) / fx and (v - cy) / fy per pixel
   };
   bool Bin(std::span<const DepthView> images, int stride, FusionStats* stats);
-  /// Calls visit(p_Rig) for every stride-th pixel of @p image with a depth in range.
+  /// Calls visit(p_Rig, border) for every stride-th pixel of @p image with a depth in range.
   template <typename Visit>
   void ForEachReading(const DepthView& image, int stride, Visit&& visit) const;
   bool Fits(const DepthView& image) const;
@@ -104,8 +109,8 @@ class Fusion {
   std::uint64_t table_mask_ = 0;
   // Dense per-voxel accumulators, at most max_points of them.
   std::vector<std::uint64_t> keys_;
-  Eigen::Matrix3Xd sum_;        // sum of points
-  Eigen::Matrix3Xd view_sum_;   // sum of unit directions from point to camera
+  Eigen::Matrix3Xd sum_;       // sum of points
+  Eigen::Matrix3Xd view_sum_;  // sum of unit directions from point to camera
   std::vector<int> count_;
   std::vector<float> mean_knn_;  // outlier statistic per voxel
   std::vector<std::uint8_t> keep_;

@@ -70,9 +70,14 @@ void SaveRigCalibration(const std::filesystem::path& path, const RigCalibration&
 /// the neck, and the morph then fails; turned to portrait at 1.2 m it sees 1.33 m.
 struct RingRigOptions {
   int num_cameras = 4;
-  double radius_m = 1.2;         ///< horizontal distance from the hanging axis
-  double height_m = -0.62;       ///< camera height in the rig frame (hook at 0, z up)
-  double look_at_z_m = -0.62;    ///< height of the point on the axis the cameras look at
+  /// Horizontal distance from the hanging axis. A portrait PrimeSense sees 2 tan(29.3 deg)
+  /// = 1.12 m of height per metre of range; at 1.6 m the near side of a carcass (about
+  /// 1.4 m away) shows 1.57 m, the largest lamb (1.44 m below the hook) with margin. At
+  /// 1.2 m the bottom 0.1-0.15 m of the largest carcasses fell outside the view and their
+  /// cut planes were 20-50 mm off (bench-daemon).
+  double radius_m = 1.6;
+  double height_m = -0.72;       ///< camera height in the rig frame (hook at 0, z up)
+  double look_at_z_m = -0.72;    ///< height of the point on the axis the cameras look at
   bool portrait = true;          ///< image columns along the vertical
   double first_azimuth_deg = 0;  ///< azimuth of camera 0 about +z
   Intrinsics intrinsics;

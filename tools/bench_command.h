@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "io/triangle_mesh.h"
+#include "morph/dense_alignment.h"
 
 namespace vb::tools {
 
@@ -14,13 +15,15 @@ struct BenchOptions {
   int pairs = 30;  ///< synthetic lamb targets per noise level
   std::vector<double> sigmas_mm = {0, 4, 16};
   std::uint64_t seed = 1;
-  bool clouds = false;                        ///< also sampled clouds with missing regions
-  bool rig = false;  ///< full stage: also clouds fused from a 4-camera virtual rig
+  bool clouds = false;  ///< also sampled clouds with missing regions
+  bool rig = false;     ///< full stage: also clouds fused from a 4-camera virtual rig
   std::vector<std::filesystem::path> shapes;  ///< extra closed meshes, re-posed by bends
   int shape_pairs = 5;
   std::string template_features = "levelset";  ///< levelset | mcf
-  int dense_rounds = 3;       ///< full stage: association -> filter -> deformation rounds
-  std::filesystem::path csv;  ///< default bench_<stage>.csv
+  double min_confidence = 0.6;  ///< full stage: a job is sent when every cut reaches this
+  int dense_rounds =
+      morph::DenseOptions{}.rounds;  ///< full stage: association -> filter -> deformation rounds
+  std::filesystem::path csv;         ///< default bench_<stage>.csv
 };
 
 /// `vbutcher bench coarse`: morphs synthetic targets with known correspondence and prints a

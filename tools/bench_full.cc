@@ -15,14 +15,15 @@
 #include "morph/coarse_alignment.h"
 #include "morph/cut_transfer.h"
 #include "morph/dense_alignment.h"
+#include "morph/morph_carcass.h"
 #include "morph/template_model.h"
 #include "perception/carcass_generator.h"
-#include "tools/bench_command.h"
-#include "tools/bench_stats.h"
 #include "perception/depth_noise.h"
 #include "perception/depth_renderer.h"
 #include "perception/fusion.h"
 #include "perception/virtual_rig.h"
+#include "tools/bench_command.h"
+#include "tools/bench_stats.h"
 
 namespace vb::tools {
 namespace {
@@ -40,6 +41,7 @@ struct FullRow {
   double coarse_s = 0, normals_s = 0, dense_s = 0, cuts_s = 0, total_s = 0;
   // How well the morph fits, as the pipeline sees it (no ground truth): last dense round.
   double kept_fraction = 0, plane_distance_rel = 0, final_cost = 0;
+  double ambiguity = 0, unexplained = 0, stretch = 0;  // morph::MorphCheck
 };
 
 double Since(std::chrono::steady_clock::time_point start) {
@@ -67,14 +69,19 @@ struct Example {
 
 FullRow Evaluate(const morph::TemplateModel& model, const io::Annotations& annotations,
                  const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
-                 const perception::PosedCarcass& truth, const morph::DenseOptions& dense_options,
+                 const perception::PosedCarcass& truth, const morph::MorphOptions& options,
                  Example* example) {
   FullRow row;
-  const auto start = std::chrono::steady_clock::now();
-  const morph::CoarseResult coarse = morph::AlignCoarse(model, points);
+  const morph::CarcassResult r = morph::MorphCarcass(model, annotations, points, normals, options);
+  const morph::CoarseResult& coarse = r.coarse;
+  const morph::DenseResult& dense = r.dense;
   row.coarse_s = coarse.total_seconds;
-  if (!coarse.ok) {
-    row.error = coarse.error;
+  row.normals_s = dense.normals_seconds;
+  row.dense_s = dense.total_seconds;
+  row.cuts_s = r.cuts_seconds;
+  row.total_s = r.seconds;
+  if (!r.ok) {
+    row.error = r.error;
     return row;
   }
   const double diagonal = io::BoundingBoxDiagonal(truth.mesh.V);
@@ -83,27 +90,18 @@ FullRow Evaluate(const morph::TemplateModel& model, const io::Annotations& annot
     row.coarse_max_rel = e.maxCoeff() / diagonal;
     row.coarse_mean_rel = e.mean() / diagonal;
   }
-  const morph::DenseResult dense = morph::AlignDense(model, coarse, points, normals, dense_options);
-  row.normals_s = dense.normals_seconds;
-  row.dense_s = dense.total_seconds;
-  if (!dense.ok) {
-    row.error = dense.error;
-    return row;
-  }
   if (!dense.rounds.empty()) {
     const morph::DenseRound& last = dense.rounds.back();
     row.kept_fraction = static_cast<double>(last.kept) / std::max(1, last.associated);
     row.plane_distance_rel = last.mean_plane_distance;
     row.final_cost = last.deformation.final_cost;
   }
-  auto phase = std::chrono::steady_clock::now();
-  const double size = coarse.template_to_target.scale;
-  const std::vector<morph::TransferredCut> cuts =
-      morph::TransferCuts(annotations, model.mesh, dense.mesh, points, dense.target_normals, size);
-  const std::vector<io::PartMeasure> parts = morph::CutParts(dense.mesh, cuts);
-  row.cuts_s = Since(phase);
-  row.total_s = Since(start);
+  row.ambiguity = r.check.ambiguity;
+  row.unexplained = r.check.unexplained;
+  row.stretch = r.check.stretch;
   row.ok = true;
+  const std::vector<morph::TransferredCut>& cuts = r.cuts;
+  const std::vector<io::PartMeasure>& parts = r.parts;
 
   const Eigen::VectorXd e = (dense.mesh.V - truth.mesh.V).colwise().norm();
   row.max_rel = e.maxCoeff() / diagonal;
@@ -149,8 +147,12 @@ int RunFullBench(const BenchOptions& options) {
   std::printf("lamb template: %d vertices, model built in %.2f s (%d graph nodes)\n",
               model.mesh.num_vertices(), model.seconds, model.graph.num_nodes());
   if (options.dense_rounds < 1) throw InputError("bench: --dense-rounds must be at least 1");
-  morph::DenseOptions dense_options;
-  dense_options.rounds = options.dense_rounds;
+  morph::MorphOptions morph_options;
+  morph_options.dense.rounds = options.dense_rounds;
+  const morph::DenseOptions& dense_options = morph_options.dense;
+  // The rig's carcasses hang from the gambrel, as on the line: the daemon's upright prior.
+  morph::MorphOptions rig_options = morph_options;
+  rig_options.coarse.upright = morph::UprightPrior{};
   std::vector<FullRow> rows;
   std::vector<std::pair<std::string, double>> groups;
   Example example;
@@ -177,7 +179,7 @@ int RunFullBench(const BenchOptions& options) {
           points = perception::SampleSurfaceCloud(truth, cloud, seed + 29).points;
         }
         const bool want_example = !have_example && std::string(input) == "cloud";
-        FullRow row = Evaluate(model, carcass.annotations, points, normals, truth, dense_options,
+        FullRow row = Evaluate(model, carcass.annotations, points, normals, truth, morph_options,
                                want_example ? &example : nullptr);
         have_example = have_example || (want_example && row.ok);
         row.input = input;
@@ -211,12 +213,12 @@ int RunFullBench(const BenchOptions& options) {
         perception::DepthNoise(perception::DepthNoiseOptions{}, seed * 31 + c)
             .Apply(renderer.depth_m(), renderer.cos_incidence(), cam.intrinsics.width,
                    cam.intrinsics.height, &images[c]);
-        views.push_back({static_cast<int>(c), images[c].data(), cam.intrinsics.width,
-                         cam.intrinsics.height});
+        views.push_back(
+            {static_cast<int>(c), images[c].data(), cam.intrinsics.width, cam.intrinsics.height});
       }
       fusion.Fuse(views, &cloud);
       FullRow row = Evaluate(model, carcass.annotations, cloud.points.leftCols(cloud.size),
-                             cloud.normals.leftCols(cloud.size), truth, dense_options, nullptr);
+                             cloud.normals.leftCols(cloud.size), truth, rig_options, nullptr);
       row.input = "rig";
       row.sigma_mm = -1;
       row.index = i;
@@ -273,12 +275,16 @@ int RunFullBench(const BenchOptions& options) {
   std::ostringstream table;
   table << "| input | sigma mm | n | ok | avg max err % | avg max err mm | mean err mm | coarse "
            "mean err mm | volume RMSE | area RMSE | cut angle deg | cut dist mm | worst cut dist "
-           "mm | confidence | median s | coarse s | dense s |\n"
-           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+           "mm | confidence | median s | coarse s | dense s | sent | sent > 10 mm | refused <= 10 "
+           "mm |\n"
+           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& [input, sigma] : groups) {
     std::vector<double> max_rel, max_mm, mean_mm, coarse_mm, volume, area, angle, distance,
         confidence, total, coarse_s, dense_s;
     int n = 0, ok = 0;
+    // What a line would have done: a job is sent only when every cut reaches the daemon's
+    // minimum confidence; a wrong job has a cut plane more than 10 mm off on average.
+    int sent = 0, sent_wrong = 0, refused_right = 0;
     double worst = 0;
     for (const FullRow& r : rows) {
       if (r.input != input || r.sigma_mm != sigma) continue;
@@ -294,7 +300,14 @@ int RunFullBench(const BenchOptions& options) {
       angle.insert(angle.end(), r.cut_angle_deg.begin(), r.cut_angle_deg.end());
       distance.insert(distance.end(), r.cut_distance_mm.begin(), r.cut_distance_mm.end());
       confidence.insert(confidence.end(), r.cut_confidence.begin(), r.cut_confidence.end());
-      for (double d : r.cut_distance_mm) worst = std::max(worst, d);
+      double job_worst = 0, job_confidence = 1;
+      for (double d : r.cut_distance_mm) job_worst = std::max(job_worst, d);
+      for (double c : r.cut_confidence) job_confidence = std::min(job_confidence, c);
+      worst = std::max(worst, job_worst);
+      const bool send = job_confidence >= options.min_confidence;
+      sent += send;
+      sent_wrong += send && job_worst > 10.0;
+      refused_right += !send && job_worst <= 10.0;
       total.push_back(r.total_s);
       coarse_s.push_back(r.coarse_s);
       dense_s.push_back(r.dense_s);
@@ -302,10 +315,11 @@ int RunFullBench(const BenchOptions& options) {
     char line[512];
     std::snprintf(line, sizeof line,
                   "| %s | %g | %d | %d | %.2f | %.1f | %.1f | %.1f | %.3f | %.3f | %.2f | %.2f | "
-                  "%.1f | %.2f | %.2f | %.2f | %.2f |\n",
+                  "%.1f | %.2f | %.2f | %.2f | %.2f | %d | %d | %d |\n",
                   input.c_str(), sigma, n, ok, 100 * Mean(max_rel), Mean(max_mm), Mean(mean_mm),
                   Mean(coarse_mm), Rms(volume), Rms(area), Mean(angle), Mean(distance), worst,
-                  Mean(confidence), Median(total), Median(coarse_s), Median(dense_s));
+                  Mean(confidence), Median(total), Median(coarse_s), Median(dense_s), sent,
+                  sent_wrong, refused_right);
     table << line;
   }
   if (!shape_rows.empty()) {
@@ -333,7 +347,8 @@ int RunFullBench(const BenchOptions& options) {
     csv << ",volume_rel_err_" << part << ",area_rel_err_" << part;
   for (const io::CutAnnotation& cut : carcass.annotations.cuts)
     csv << ",angle_deg_" << cut.name << ",distance_mm_" << cut.name << ",confidence_" << cut.name;
-  csv << ",kept_fraction,plane_distance_rel,final_cost,coarse_s,normals_s,dense_s,cuts_s,total_s\n";
+  csv << ",kept_fraction,plane_distance_rel,final_cost,ambiguity,unexplained,stretch,coarse_s,"
+         "normals_s,dense_s,cuts_s,total_s\n";
   for (const FullRow& r : rows) {
     csv << r.input << ',' << r.sigma_mm << ',' << r.index << ',' << r.ok << ",\"" << r.error
         << "\"," << r.coarse_max_rel << ',' << r.coarse_mean_rel << ',' << r.max_rel << ','
@@ -352,8 +367,8 @@ int RunFullBench(const BenchOptions& options) {
         csv << ",,,";
     }
     csv << ',' << r.kept_fraction << ',' << r.plane_distance_rel << ',' << r.final_cost << ','
-        << r.coarse_s << ',' << r.normals_s << ',' << r.dense_s << ',' << r.cuts_s << ','
-        << r.total_s << '\n';
+        << r.ambiguity << ',' << r.unexplained << ',' << r.stretch << ',' << r.coarse_s << ','
+        << r.normals_s << ',' << r.dense_s << ',' << r.cuts_s << ',' << r.total_s << '\n';
   }
   std::filesystem::path stem = options.csv;
   stem.replace_extension();

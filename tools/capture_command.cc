@@ -79,8 +79,7 @@ int RunVirtualRig(const VirtualRigCommandOptions& options) {
       perception::WriteVirtualRig(perception::BuildCarcassTemplate(), rig);
   std::printf("scene   %s\nrig     %s\ncarcass %s\n", files.scene.c_str(), files.rig.c_str(),
               files.carcass.c_str());
-  std::printf("export VB_VIRTUAL_SCENE=%s\n",
-              std::filesystem::absolute(files.scene).c_str());
+  std::printf("export VB_VIRTUAL_SCENE=%s\n", std::filesystem::absolute(files.scene).c_str());
   return 0;
 }
 
@@ -139,12 +138,14 @@ int RunCapture(const CaptureCommandOptions& options) {
     std::fprintf(stderr, "vbutcher: capture: no frame set within %.1f s\n", options.timeout_s);
     return 3;
   }
-  const perception::FusionStats stats = fusion.Fuse({views.data(), static_cast<std::size_t>(n)}, &cloud);
+  const perception::FusionStats stats =
+      fusion.Fuse({views.data(), static_cast<std::size_t>(n)}, &cloud);
   std::printf(
-      "fused %d images: %ld readings, %ld in the ROI, %d voxels, %d outliers, %d without "
-      "normal -> %d points (pixel stride %d%s)\n",
-      stats.images, stats.valid_readings, stats.roi_readings, stats.voxels, stats.outliers,
-      stats.no_normal, cloud.size, stats.pixel_stride, stats.truncated ? ", truncated" : "");
+      "fused %d images: %ld readings, %ld in the ROI (%ld on image borders), %d voxels, %d "
+      "outliers, %d without normal -> %d points (pixel stride %d%s)\n",
+      stats.images, stats.valid_readings, stats.roi_readings, stats.border_readings, stats.voxels,
+      stats.outliers, stats.no_normal, cloud.size, stats.pixel_stride,
+      stats.truncated ? ", truncated" : "");
   io::WriteCloud(options.out_path, cloud.ToPointCloud());
   std::printf("wrote %s\n", options.out_path.c_str());
   return 0;
@@ -173,8 +174,8 @@ int RunCaptureBench(const CaptureBenchOptions& options) {
   std::filesystem::path scene = options.scene_path;
   std::filesystem::path temp;
   if (scene.empty()) {
-    temp = std::filesystem::temp_directory_path() /
-           ("vb_bench_capture_" + std::to_string(::getpid()));
+    temp =
+        std::filesystem::temp_directory_path() / ("vb_bench_capture_" + std::to_string(::getpid()));
     perception::VirtualRigOptions rig_options;
     rig_options.out_dir = temp;
     scene = perception::WriteVirtualRig(perception::BuildCarcassTemplate(), rig_options).scene;

@@ -4,12 +4,14 @@
 #include <filesystem>
 #include <string>
 
+#include "perception/rig_calibration.h"
+
 namespace vb::tools {
 
 struct VirtualRigCommandOptions {
   std::filesystem::path out_dir;
   int cameras = 4;
-  double radius_m = 1.0;
+  double radius_m = perception::RingRigOptions{}.radius_m;
   std::uint64_t seed = 1;  ///< carcass pose
   bool no_noise = false;
   int fps = 30;
@@ -41,8 +43,8 @@ struct VirtualLineOptions {
   std::filesystem::path scene_path;
   int count = 5;
   std::uint64_t first_seed = 100;
-  double hang_s = 4.0;  ///< a carcass stays this long in the rig
-  double gap_s = 1.0;   ///< then the hook is empty this long
+  double hang_s = 4.0;              ///< a carcass stays this long in the rig
+  double gap_s = 1.0;               ///< then the hook is empty this long
   std::filesystem::path truth_out;  ///< per carcass its true cut planes (YAML)
 };
 /// `vbutcher virtual-line`: a stream of synthetic carcasses through a virtual scene.

@@ -9,6 +9,7 @@
 #include "morph/coarse_alignment.h"
 #include "morph/cut_transfer.h"
 #include "morph/dense_alignment.h"
+#include "morph/morph_carcass.h"
 #include "morph/morph_report.h"
 #include "morph/template_artifact.h"
 #include "morph/template_model.h"
@@ -45,10 +46,16 @@ int RunMorphCommand(const MorphCommandOptions& options) {
     }
   }
   const io::PointCloud target = io::ReadCloud(options.target_path);
-  const morph::CoarseResult coarse = morph::AlignCoarse(model, target.points);
-  morph::DenseResult dense;
+  // The full stage is the pipeline's own path (morph, whole-morph check, cuts).
+  morph::CarcassResult result;
+  if (options.stage == "full") {
+    result = morph::MorphCarcass(model, annotations, target.points, target.normals);
+  } else {
+    result.coarse = morph::AlignCoarse(model, target.points);
+  }
+  const morph::CoarseResult& coarse = result.coarse;
+  const morph::DenseResult& dense = result.dense;
   const bool full = options.stage == "full" && coarse.ok;
-  if (full) dense = morph::AlignDense(model, coarse, target.points, target.normals);
   if (!options.report_path.empty())
     morph::WriteMorphReport(options.report_path, model, coarse, full ? &dense : nullptr);
   const std::string& error = !coarse.ok ? coarse.error : (full && !dense.ok ? dense.error : "");
@@ -68,11 +75,16 @@ int RunMorphCommand(const MorphCommandOptions& options) {
     std::printf("morph: dense: normals %.3f s, %zu rounds, total %.3f s\n", dense.normals_seconds,
                 dense.rounds.size(), dense.total_seconds);
   }
+  if (full) {
+    std::printf(
+        "morph: check: ambiguity %.3f, unexplained %.3f, stretch %.3f -> confidence %.2f%s%s\n",
+        result.check.ambiguity, result.check.unexplained, result.check.stretch,
+        result.check.confidence, result.check.concern.empty() ? "" : ": ",
+        result.check.concern.c_str());
+  }
   if (full && (!options.annotations_path.empty() || !options.cuts_path.empty())) {
-    const std::vector<morph::TransferredCut> cuts =
-        morph::TransferCuts(annotations, model.mesh, dense.mesh, target.points,
-                            dense.target_normals, coarse.template_to_target.scale);
-    const std::vector<io::PartMeasure> parts = morph::CutParts(dense.mesh, cuts);
+    const std::vector<morph::TransferredCut>& cuts = result.cuts;
+    const std::vector<io::PartMeasure>& parts = result.parts;
     for (const morph::TransferredCut& c : cuts) {
       std::printf(
           "cut %-14s normal (%+.3f %+.3f %+.3f) fit rms %.4g coverage %.2f confidence %.2f\n",
@@ -84,7 +96,7 @@ int RunMorphCommand(const MorphCommandOptions& options) {
                   parts[k].volume, parts[k].area);
     }
     if (!options.cuts_path.empty())
-      morph::WriteCutsReport(options.cuts_path, annotations, cuts, parts);
+      morph::WriteCutsReport(options.cuts_path, annotations, cuts, parts, result.check);
   }
   return 0;
 }
@@ -95,10 +107,9 @@ void Describe(const morph::TemplateArtifact& a) {
   std::printf(
       "template %s version %d: %d vertices, %d faces, size %.4g; skeleton %d nodes, %d "
       "terminals, %d junctions; deformation graph %d nodes, %zu edges, %zu bridges; %zu cuts\n",
-      a.template_id.c_str(), a.template_version, m.mesh.num_vertices(), m.mesh.num_faces(),
-      m.size, m.skeleton.num_nodes(), m.features.num_terminals(), m.features.num_junctions(),
-      m.graph.num_nodes(), m.graph.edges.size(), m.graph.bridges.size(),
-      a.annotations.cuts.size());
+      a.template_id.c_str(), a.template_version, m.mesh.num_vertices(), m.mesh.num_faces(), m.size,
+      m.skeleton.num_nodes(), m.features.num_terminals(), m.features.num_junctions(),
+      m.graph.num_nodes(), m.graph.edges.size(), m.graph.bridges.size(), a.annotations.cuts.size());
 }
 
 double LoadSeconds(const std::filesystem::path& path, morph::TemplateArtifact* out) {
@@ -124,8 +135,8 @@ int RunTemplateCompile(const TemplateCompileOptions& options) {
   const double load_s = LoadSeconds(options.out_path, &back);
   Describe(back);
   std::printf("compiled in %.2f s; %s: %ju bytes, loads in %.3f s\n", artifact.model.seconds,
-              options.out_path.c_str(), static_cast<std::uintmax_t>(std::filesystem::file_size(options.out_path)),
-              load_s);
+              options.out_path.c_str(),
+              static_cast<std::uintmax_t>(std::filesystem::file_size(options.out_path)), load_s);
   return 0;
 }
 

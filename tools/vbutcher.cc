@@ -67,8 +67,7 @@ int main(int argc, char** argv) {
   vb::tools::TemplateCompileOptions compile;
   CLI::App* compile_cmd = template_cmd->add_subcommand(
       "compile", "Store the template's precomputed model and its annotations in one file");
-  compile_cmd->add_option("--template", compile.template_path, "Closed template mesh")
-      ->required();
+  compile_cmd->add_option("--template", compile.template_path, "Closed template mesh")->required();
   compile_cmd->add_option("--annotations", compile.annotations_path, "Cut annotations (YAML)")
       ->required();
   compile_cmd->add_option("-o,--out", compile.out_path, "Output file (.vbt)")->required();
@@ -77,7 +76,8 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   std::filesystem::path info_path;
-  CLI::App* info_cmd = template_cmd->add_subcommand("info", "Verify and describe a compiled template");
+  CLI::App* info_cmd =
+      template_cmd->add_subcommand("info", "Verify and describe a compiled template");
   info_cmd->add_option("model", info_path, "Compiled template (.vbt)")->required();
 
   vb::tools::BenchOptions bench;
@@ -105,6 +105,12 @@ int main(int argc, char** argv) {
       ->add_option("--template-features", bench.template_features,
                    "Template skeleton: levelset | mcf")
       ->capture_default_str();
+  bench_cmd
+      ->add_option("--min-confidence", bench.min_confidence,
+                   "Full stage: a job counts as sent when every cut reaches this (the "
+                   "daemon's job.min_confidence)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
   bench_cmd->add_option("--dense-rounds", bench.dense_rounds, "Full stage: dense rounds")
       ->capture_default_str();
   bench_cmd->add_option("--csv", bench.csv, "One row per morph (default bench_<stage>.csv)");

@@ -57,12 +57,32 @@ TEST_F(DaemonConfigTest, ReadsEverySectionWithDefaultsForTheRest) {
   EXPECT_EQ(c.X_SawRig.translation().z(), 1.8);
   EXPECT_EQ(c.rig.cameras.size(), 4u);
   EXPECT_EQ(c.template_path, dir_ / "lamb.vbt");
+  EXPECT_FALSE(c.morph.upright.has_value());  // any orientation unless the line says
+}
+
+TEST_F(DaemonConfigTest, ReadsTheUprightPriorAndRefusesHalfOfIt) {
+  const auto path =
+      dir_.Write("vbd.yaml",
+                 kHead + "morph: {template_up: [0, 0, 2], rig_up: [0, -1, 0], max_tilt_deg: 30}\n");
+  const DaemonConfig c = LoadDaemonConfig(path);
+  ASSERT_TRUE(c.morph.upright.has_value());
+  EXPECT_EQ(c.morph.upright->template_up, Eigen::Vector3d(0, 0, 1));  // normalised
+  EXPECT_EQ(c.morph.upright->target_up, Eigen::Vector3d(0, -1, 0));
+  EXPECT_EQ(c.morph.upright->max_tilt_deg, 30);
+  EXPECT_THAT(Error("morph: {template_up: [0, 0, 1]}\n"),
+              HasSubstr("morph.rig_up: is needed with the other upright keys"));
+  EXPECT_THAT(Error("morph: {template_up: [0, 0, 0], rig_up: [0, 0, 1]}\n"),
+              HasSubstr("morph.template_up: must not be zero"));
+  EXPECT_THAT(Error("morph: {template_up: [0, 0, 1], rig_up: [0, 0, 1], max_tilt_deg: 0}\n"),
+              HasSubstr("morph.max_tilt_deg: value 0 is outside [1, 180]"));
+  EXPECT_THAT(Error("morph: {upright: yes}\n"), HasSubstr("morph.upright: unknown key"));
 }
 
 TEST_F(DaemonConfigTest, NamesFileLineKeyAndValue) {
   EXPECT_THAT(Error("capture: {fsp: 30}\n"), HasSubstr("vbd.yaml:5: capture.fsp: unknown key"));
   EXPECT_THAT(Error("captur: {fps: 30}\n"), HasSubstr("captur: unknown key"));
-  EXPECT_THAT(Error("capture: {fps: 500}\n"), HasSubstr("capture.fps: value 500 is outside [1, 120]"));
+  EXPECT_THAT(Error("capture: {fps: 500}\n"),
+              HasSubstr("capture.fps: value 500 is outside [1, 120]"));
   EXPECT_THAT(Error("fusion: {voxel_m: fine}\n"), HasSubstr("fusion.voxel_m: cannot read 'fine'"));
   EXPECT_THAT(Error("fusion: {roi_min: [1, 1, 1], roi_max: [0, 0, 0]}\n"),
               HasSubstr("region of interest is empty"));
@@ -74,10 +94,12 @@ TEST_F(DaemonConfigTest, NamesFileLineKeyAndValue) {
   EXPECT_THAT(Error("X_SawRig: {translation: [0, 0, 0], rotation_wxyz: [2, 0, 0, 0]}\n"),
               HasSubstr("X_SawRig.rotation_wxyz: is not a unit quaternion"));
   EXPECT_THAT(Error("virtual_scene: nowhere.yaml\n"), HasSubstr("virtual_scene: no file"));
-  const auto missing = dir_.Write("m.yaml", "format: virtualbutcherd-config\nversion: 1\nrig: rig.yaml\n");
+  const auto missing =
+      dir_.Write("m.yaml", "format: virtualbutcherd-config\nversion: 1\nrig: rig.yaml\n");
   EXPECT_THROW(LoadDaemonConfig(missing), InputError);
-  const auto no_template = dir_.Write("t.yaml", "format: virtualbutcherd-config\nversion: 1\n"
-                                                "template: absent.vbt\nrig: rig.yaml\n");
+  const auto no_template = dir_.Write("t.yaml",
+                                      "format: virtualbutcherd-config\nversion: 1\n"
+                                      "template: absent.vbt\nrig: rig.yaml\n");
   try {
     LoadDaemonConfig(no_template);
     ADD_FAILURE();
@@ -101,6 +123,7 @@ TEST(DaemonConfigShippedTest, TheShippedExampleIsValidOnceItsFilesExist) {
   s.replace(s.find("/etc/virtualbutcher/rig.yaml"), 28, "rig.yaml");
   const DaemonConfig c = LoadDaemonConfig(dir.Write("vbd.yaml", s));
   EXPECT_EQ(c.can.interface, "can0");
+  EXPECT_TRUE(c.morph.upright.has_value());
 }
 
 }  // namespace

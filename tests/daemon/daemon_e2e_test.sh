@@ -31,6 +31,7 @@ rig: rig/rig.yaml
 virtual_scene: rig/scene.yaml
 lcm: {url: "$url"}
 can: {interface: loopback}
+morph: {template_up: [0, 0, 1], rig_up: [0, 0, 1], max_tilt_deg: 45}
 job: {max_result_age_ms: 20000}
 X_SawRig: {translation: [0, 0, 1.8], rotation_wxyz: [1, 0, 0, 0]}
 YAML

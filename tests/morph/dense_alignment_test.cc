@@ -109,7 +109,7 @@ TEST_F(DenseAlignmentTest, RefinesTheCoarseMorphAndTransfersTheCuts) {
     const DenseResult dense = AlignDense(*model_, coarse, target.V, target.N);
     ASSERT_TRUE(dense.ok) << dense.error;
     ASSERT_EQ(dense.mesh.F, model_->mesh.F);
-    ASSERT_EQ(dense.rounds.size(), 3u);
+    ASSERT_EQ(dense.rounds.size(), static_cast<std::size_t>(DenseOptions{}.rounds));
     for (const DenseRound& round : dense.rounds) EXPECT_GT(round.kept, round.associated / 2);
 
     const double coarse_error = (coarse.mesh.V - truth.mesh.V).colwise().norm().mean();

@@ -1,0 +1,74 @@
+#include "morph/morph_check.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+#include "morph/point_index.h"
+
+namespace vb::morph {
+
+MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
+                      const DenseResult& dense, const Eigen::Matrix3Xd& target,
+                      const MorphCheckOptions& options) {
+  MorphCheck check;
+  if (std::isfinite(coarse.runner_up_disagreement) && coarse.runner_up_disagreement > 0)
+    check.ambiguity = coarse.disagreement / coarse.runner_up_disagreement;
+
+  // The model's normalised frame has the template's size as unit; the coarse similarity
+  // takes it to the target's units.
+  const double size = coarse.association.from_to.scale;
+  if (target.cols() > 0 && dense.mesh.V.cols() > 0) {
+    const PointIndex index(dense.mesh.V);
+    const double limit = options.explained_distance * size + 3.0 * dense.noise * size;
+    long far = 0;
+    for (Eigen::Index i = 0; i < target.cols(); ++i)
+      if ((dense.mesh.V.col(index.Nearest(target.col(i))) - target.col(i)).norm() > limit) ++far;
+    check.unexplained = static_cast<double>(far) / static_cast<double>(target.cols());
+  }
+
+  std::vector<double> logs;
+  logs.reserve(3 * static_cast<std::size_t>(model.mesh.F.cols()));
+  for (Eigen::Index f = 0; f < model.mesh.F.cols(); ++f) {
+    for (int e = 0; e < 3; ++e) {
+      const int a = model.mesh.F(e, f), b = model.mesh.F((e + 1) % 3, f);
+      if (a > b) continue;  // each interior edge once (its other face has it the other way)
+      const double rest = size * (model.V.col(a) - model.V.col(b)).norm();
+      const double now = (dense.mesh.V.col(a) - dense.mesh.V.col(b)).norm();
+      if (rest > 0 && now > 0) logs.push_back(std::abs(std::log(now / rest)));
+    }
+  }
+  if (!logs.empty()) {
+    const auto k = logs.begin() + static_cast<std::ptrdiff_t>(0.9 * (logs.size() - 1));
+    std::nth_element(logs.begin(), k, logs.end());
+    check.stretch = *k;
+  }
+
+  const double from_ambiguity =
+      std::clamp((1.0 - check.ambiguity) / (1.0 - options.ambiguity_start), 0.0, 1.0);
+  const double u = check.unexplained / options.unexplained_scale;
+  const double from_unexplained = 1.0 / (1.0 + u * u);
+  const double from_stretch = std::clamp(
+      (options.stretch_end - check.stretch) / (options.stretch_end - options.stretch_start), 0.0,
+      1.0);
+  check.confidence = from_ambiguity * from_unexplained * from_stretch;
+  char why[160];
+  const double worst = std::min({from_ambiguity, from_unexplained, from_stretch});
+  if (worst < 0.9) {
+    if (worst == from_ambiguity)
+      std::snprintf(why, sizeof(why),
+                    "placement ambiguous: a placement turned elsewhere fits %.0f %% as well",
+                    100.0 * check.ambiguity);
+    else if (worst == from_unexplained)
+      std::snprintf(why, sizeof(why), "%.0f %% of the target is not covered by the morph",
+                    100.0 * check.unexplained);
+    else
+      std::snprintf(why, sizeof(why), "the morph stretched the template by %.0f %%",
+                    100.0 * (std::exp(check.stretch) - 1.0));
+    check.concern = why;
+  }
+  return check;
+}
+
+}  // namespace vb::morph

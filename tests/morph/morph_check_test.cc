@@ -1,0 +1,79 @@
+#include "morph/morph_check.h"
+
+#include <gtest/gtest.h>
+
+#include "io/mesh_measures.h"
+#include "morph/morph_carcass.h"
+#include "perception/carcass_generator.h"
+#include "tests/support/lamb_fixture.h"
+
+namespace vb::morph {
+namespace {
+
+using MorphCheckTest = test::LambTemplateTest;
+
+// A carcass hanging upright as on the line (+z up, as the template), seen by a ring of
+// cameras: a partial, noisy cloud.
+Eigen::Matrix3Xd HangingCloud(const perception::CarcassTemplate& carcass, std::uint64_t seed,
+                              perception::PosedCarcass* truth) {
+  perception::PoseOptions pose;
+  pose.arbitrary_orientation = false;
+  *truth = perception::PoseCarcass(carcass, perception::SampleCarcassPose(seed, pose));
+  perception::CloudOptions cloud;
+  cloud.sigma_m = 0.003;
+  cloud.missing_regions = true;
+  return perception::SampleSurfaceCloud(*truth, cloud, seed + 1).points;
+}
+
+double MeanErrorRelative(const CarcassResult& r, const perception::PosedCarcass& truth) {
+  return (r.dense.mesh.V - truth.mesh.V).colwise().norm().mean() /
+         io::BoundingBoxDiagonal(truth.mesh.V);
+}
+
+TEST_F(MorphCheckTest, TrustsAGoodMorphAndDistrustsAnUpsideDownOne) {
+  int wrong_morphs = 0;
+  for (std::uint64_t seed : {2000003u, 2000011u}) {
+    perception::PosedCarcass truth;
+    const Eigen::Matrix3Xd cloud = HangingCloud(*carcass_, seed, &truth);
+
+    MorphOptions upright;
+    upright.coarse.upright = UprightPrior{};  // the truth: hind legs up
+    const CarcassResult good = MorphCarcass(*model_, carcass_->annotations, cloud, {}, upright);
+    ASSERT_TRUE(good.ok) << good.error;
+    EXPECT_LT(MeanErrorRelative(good, truth), 0.02) << "seed " << seed;
+    EXPECT_GT(good.check.confidence, 0.9) << "seed " << seed << ": " << good.check.concern;
+    for (const TransferredCut& cut : good.cuts) EXPECT_GT(cut.confidence, 0.6) << cut.name;
+
+    // Force the wrong answer: tell the coarse stage the carcass hangs head up. Whatever it
+    // then makes of the cloud is wrong, and the check must say so without ground truth.
+    MorphOptions flipped;
+    flipped.coarse.upright = UprightPrior{.target_up = -Eigen::Vector3d::UnitZ()};
+    const CarcassResult wrong = MorphCarcass(*model_, carcass_->annotations, cloud, {}, flipped);
+    if (!wrong.ok) continue;  // no such placement among the candidates: nothing to send
+    ++wrong_morphs;
+    EXPECT_GT(MeanErrorRelative(wrong, truth), 0.05) << "seed " << seed;
+    EXPECT_LT(wrong.check.confidence, 0.5) << "seed " << seed;
+    EXPECT_FALSE(wrong.check.concern.empty());
+    for (const TransferredCut& cut : wrong.cuts) EXPECT_LT(cut.confidence, 0.6) << cut.name;
+  }
+  EXPECT_GE(wrong_morphs, 1) << "no wrong morph was made, so the check was not tested";
+}
+
+TEST_F(MorphCheckTest, UprightPriorOnlyConsidersPlacementsWithinTheTilt) {
+  perception::PosedCarcass truth;
+  const Eigen::Matrix3Xd cloud = HangingCloud(*carcass_, 2000005u, &truth);
+  for (const Eigen::Vector3d& up : {Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0, 0, -1)}) {
+    CoarseOptions options;
+    options.upright = UprightPrior{.target_up = up, .max_tilt_deg = 30};
+    const CoarseResult r = AlignCoarse(*model_, cloud, options);
+    if (!r.ok) {
+      EXPECT_NE(r.error.find("within 30 degrees of upright"), std::string::npos) << r.error;
+      continue;
+    }
+    const Eigen::Vector3d mapped = r.association.from_to.R * Eigen::Vector3d::UnitZ();
+    EXPECT_GE(mapped.dot(up), std::cos(30.0 * 3.14159265358979 / 180.0) - 1e-9);
+  }
+}
+
+}  // namespace
+}  // namespace vb::morph
