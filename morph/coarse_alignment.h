@@ -34,6 +34,13 @@ struct CoarseOptions {
   int verification_samples = 400;
   /// Without it, any orientation (the method's default: targets come in any pose).
   std::optional<UprightPrior> upright;
+  /// The candidates with the least surface disagreement that are refined by closest-point
+  /// similarity fitting (this many rounds each) before the final choice; 0 rounds: none.
+  int refine_candidates = 8;
+  int refine_iterations = 8;
+  /// After the placement is chosen, features are paired again as mutual nearest neighbours
+  /// within this distance (template sizes); 0 keeps the chosen candidate's own pairs.
+  double repair_radius = 0.12;
   /// Candidates whose rotations differ by more than this are different placements.
   double distinct_angle_deg = 30.0;
   EmbeddedDeformationOptions deformation;

@@ -18,6 +18,8 @@ struct Search {
   std::vector<int> a_slots;  // which `a` nodes get paired (the smaller side of each kind)
   bool a_is_from = true;
   double max_stretch = 1.8;
+  Eigen::Vector3d from_up = Eigen::Vector3d::UnitZ(), to_up = Eigen::Vector3d::UnitZ();
+  double min_cos_up = -1.0;
 
   std::vector<int> assignment;  // per slot, index into b
   std::vector<bool> used;
@@ -65,6 +67,7 @@ struct Search {
     double cost = ((sR * src).colwise() + T.topRightCorner<3, 1>() - dst).squaredNorm();
     const double scale = std::cbrt(sR.determinant());
     ++candidates;
+    if (min_cos_up > -1.0 && ((sR / scale) * from_up).dot(to_up) < min_cos_up) return;
     // Rank by residual per degree of freedom left after the 7-parameter similarity (fewer
     // pairs always fit better), doubled for every feature left unpaired: leaving one out
     // must at least halve the residual, as a spur or a merged limb does; the floor keeps
@@ -194,6 +197,9 @@ std::vector<Association> AssociateFeatureNodes(const FeatureNodes& from_in,
   s.b_terminals = fb.num_terminals();
   s.max_stretch = options.max_relative_stretch;
   s.keep = static_cast<std::size_t>(std::max(1, options.keep_best));
+  s.from_up = options.from_up.normalized();
+  s.to_up = options.to_up.normalized();
+  s.min_cos_up = options.min_cos_up;
   for (int i = 0; i < fa.num_terminals(); ++i) s.a_slots.push_back(i);
   // Junctions: pair all of a's if it has no more than b; otherwise only as many as b has,
   // trying every subset of a's junctions.

@@ -38,6 +38,11 @@ struct AssociationOptions {
   long max_candidates = 300'000;
   /// How many of the best pairings to return (distinct, best first), for verification.
   int keep_best = 64;
+  /// Pairings whose fit turns from_up to less than min_cos_up with to_up are not kept
+  /// (the coarse stage's upright prior; min_cos_up = -1 keeps every orientation).
+  Eigen::Vector3d from_up = Eigen::Vector3d::UnitZ();
+  Eigen::Vector3d to_up = Eigen::Vector3d::UnitZ();
+  double min_cos_up = -1.0;
 };
 
 /// Exhaustive search for the feature correspondence that minimises eq. (3): every

@@ -110,7 +110,11 @@ TEST_F(DenseAlignmentTest, RefinesTheCoarseMorphAndTransfersTheCuts) {
     ASSERT_TRUE(dense.ok) << dense.error;
     ASSERT_EQ(dense.mesh.F, model_->mesh.F);
     ASSERT_EQ(dense.rounds.size(), static_cast<std::size_t>(DenseOptions{}.rounds));
-    for (const DenseRound& round : dense.rounds) EXPECT_GT(round.kept, round.associated / 2);
+    // The first round starts from the coarse posture and may trim up to its cap (half);
+    // from the second on, most pairs agree.
+    EXPECT_GE(dense.rounds.front().kept, dense.rounds.front().associated / 2);
+    for (std::size_t r = 1; r < dense.rounds.size(); ++r)
+      EXPECT_GT(dense.rounds[r].kept, 0.7 * dense.rounds[r].associated) << "round " << r;
 
     const double coarse_error = (coarse.mesh.V - truth.mesh.V).colwise().norm().mean();
     const double dense_error = (dense.mesh.V - truth.mesh.V).colwise().norm().mean();
