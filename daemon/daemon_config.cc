@@ -131,6 +131,7 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
   const Section morph_section(r, root, "morph", {"template_up", "rig_up", "max_tilt_deg"});
   if (morph_section["template_up"] || morph_section["rig_up"] || morph_section["max_tilt_deg"]) {
     morph::UprightPrior upright;
+    upright.enabled = true;
     for (const char* key : {"template_up", "rig_up"}) {
       if (!morph_section[key])
         r.Fail(root["morph"], morph_section.key(key), "is needed with the other upright keys");

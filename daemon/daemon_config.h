@@ -2,7 +2,6 @@
 
 #include <Eigen/Geometry>
 #include <filesystem>
-#include <optional>
 #include <string>
 
 #include "io/lcm_publisher.h"
@@ -35,9 +34,9 @@ struct JobOptions {
 
 /// What the morph may assume on the line.
 struct MorphSection {
-  /// Carcasses hang from the gambrel: when set, only placements of the template whose up
+  /// Carcasses hang from the gambrel: when enabled, only placements of the template whose up
   /// direction (template frame) lies within max_tilt_deg of the rig's up are considered.
-  std::optional<morph::UprightPrior> upright;
+  morph::UprightPrior upright;
 };
 
 struct CanOptions {

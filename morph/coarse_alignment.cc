@@ -145,10 +145,10 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   // Eq. (3) ranks skeleton pairings; the best few are then checked against the surfaces, as
   // pairings with similar skeleton residuals can place the carcass upside down.
   AssociationOptions association = options.association;
-  if (options.upright) {
-    association.from_up = options.upright->template_up;
-    association.to_up = options.upright->target_up;
-    association.min_cos_up = std::cos(options.upright->max_tilt_deg * std::numbers::pi / 180.0);
+  if (options.upright.enabled) {
+    association.from_up = options.upright.template_up;
+    association.to_up = options.upright.target_up;
+    association.min_cos_up = std::cos(options.upright.max_tilt_deg * std::numbers::pi / 180.0);
   }
   const std::vector<Association> candidates =
       AssociateFeatureNodes(model.features, result.target_features, association);
@@ -158,10 +158,10 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     const PointIndex target_index(target);
     double cos_tilt = -1.0;
     Eigen::Vector3d template_up = Eigen::Vector3d::UnitZ(), target_up = Eigen::Vector3d::UnitZ();
-    if (options.upright) {
-      template_up = options.upright->template_up.normalized();
-      target_up = options.upright->target_up.normalized();
-      cos_tilt = std::cos(options.upright->max_tilt_deg * std::numbers::pi / 180.0);
+    if (options.upright.enabled) {
+      template_up = options.upright.template_up.normalized();
+      target_up = options.upright.target_up.normalized();
+      cos_tilt = std::cos(options.upright.max_tilt_deg * std::numbers::pi / 180.0);
     }
     std::vector<double> disagreements;
     double best = std::numeric_limits<double>::infinity();
@@ -233,10 +233,10 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     }
   }
   result.association_seconds = Since(phase);
-  if (!result.association.ok && options.upright) {
+  if (!result.association.ok && options.upright.enabled) {
     result.error =
         "feature association failed: no placement of the skeletons' features is within " +
-        std::to_string(static_cast<int>(options.upright->max_tilt_deg)) + " degrees of upright";
+        std::to_string(static_cast<int>(options.upright.max_tilt_deg)) + " degrees of upright";
     return result;
   }
   if (!result.association.ok) {

@@ -1,7 +1,6 @@
 #pragma once
 
 #include <Eigen/Core>
-#include <optional>
 #include <string>
 
 #include "io/triangle_mesh.h"
@@ -18,6 +17,9 @@ namespace vb::morph {
 /// are not considered, which rules out upside-down fits of a carcass that lost a limb to
 /// occlusion.
 struct UprightPrior {
+  /// Off: any orientation (the method's default: targets come in any pose). A flag rather
+  /// than std::optional, whose copies GCC 12 calls uninitialised under -O3 sanitizer builds.
+  bool enabled = false;
   Eigen::Vector3d template_up = Eigen::Vector3d::UnitZ();
   Eigen::Vector3d target_up = Eigen::Vector3d::UnitZ();
   double max_tilt_deg = 45.0;
@@ -32,8 +34,7 @@ struct CoarseOptions {
   AssociationOptions association;
   /// Samples per side when checking candidate pairings against the surfaces.
   int verification_samples = 400;
-  /// Without it, any orientation (the method's default: targets come in any pose).
-  std::optional<UprightPrior> upright;
+  UprightPrior upright;
   /// The candidates with the least surface disagreement that are refined by closest-point
   /// similarity fitting (this many rounds each) before the final choice; 0 rounds: none.
   int refine_candidates = 8;

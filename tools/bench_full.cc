@@ -152,7 +152,7 @@ int RunFullBench(const BenchOptions& options) {
   const morph::DenseOptions& dense_options = morph_options.dense;
   // The rig's carcasses hang from the gambrel, as on the line: the daemon's upright prior.
   morph::MorphOptions rig_options = morph_options;
-  rig_options.coarse.upright = morph::UprightPrior{};
+  rig_options.coarse.upright.enabled = true;
   std::vector<FullRow> rows;
   std::vector<std::pair<std::string, double>> groups;
   Example example;

@@ -57,7 +57,7 @@ TEST_F(DaemonConfigTest, ReadsEverySectionWithDefaultsForTheRest) {
   EXPECT_EQ(c.X_SawRig.translation().z(), 1.8);
   EXPECT_EQ(c.rig.cameras.size(), 4u);
   EXPECT_EQ(c.template_path, dir_ / "lamb.vbt");
-  EXPECT_FALSE(c.morph.upright.has_value());  // any orientation unless the line says
+  EXPECT_FALSE(c.morph.upright.enabled);  // any orientation unless the line says
 }
 
 TEST_F(DaemonConfigTest, ReadsTheUprightPriorAndRefusesHalfOfIt) {
@@ -65,10 +65,10 @@ TEST_F(DaemonConfigTest, ReadsTheUprightPriorAndRefusesHalfOfIt) {
       dir_.Write("vbd.yaml",
                  kHead + "morph: {template_up: [0, 0, 2], rig_up: [0, -1, 0], max_tilt_deg: 30}\n");
   const DaemonConfig c = LoadDaemonConfig(path);
-  ASSERT_TRUE(c.morph.upright.has_value());
-  EXPECT_EQ(c.morph.upright->template_up, Eigen::Vector3d(0, 0, 1));  // normalised
-  EXPECT_EQ(c.morph.upright->target_up, Eigen::Vector3d(0, -1, 0));
-  EXPECT_EQ(c.morph.upright->max_tilt_deg, 30);
+  ASSERT_TRUE(c.morph.upright.enabled);
+  EXPECT_EQ(c.morph.upright.template_up, Eigen::Vector3d(0, 0, 1));  // normalised
+  EXPECT_EQ(c.morph.upright.target_up, Eigen::Vector3d(0, -1, 0));
+  EXPECT_EQ(c.morph.upright.max_tilt_deg, 30);
   EXPECT_THAT(Error("morph: {template_up: [0, 0, 1]}\n"),
               HasSubstr("morph.rig_up: is needed with the other upright keys"));
   EXPECT_THAT(Error("morph: {template_up: [0, 0, 0], rig_up: [0, 0, 1]}\n"),
@@ -123,7 +123,7 @@ TEST(DaemonConfigShippedTest, TheShippedExampleIsValidOnceItsFilesExist) {
   s.replace(s.find("/etc/virtualbutcher/rig.yaml"), 28, "rig.yaml");
   const DaemonConfig c = LoadDaemonConfig(dir.Write("vbd.yaml", s));
   EXPECT_EQ(c.can.interface, "can0");
-  EXPECT_TRUE(c.morph.upright.has_value());
+  EXPECT_TRUE(c.morph.upright.enabled);
 }
 
 }  // namespace

@@ -37,7 +37,7 @@ TEST_F(MorphCheckTest, TrustsAGoodMorphAndDistrustsAnUpsideDownOne) {
     const Eigen::Matrix3Xd cloud = HangingCloud(*carcass_, seed, &truth);
 
     MorphOptions upright;
-    upright.coarse.upright = UprightPrior{};  // the truth: hind legs up
+    upright.coarse.upright.enabled = true;  // the truth: hind legs up
     const CarcassResult good = MorphCarcass(*model_, carcass_->annotations, cloud, {}, upright);
     ASSERT_TRUE(good.ok) << good.error;
     EXPECT_LT(MeanErrorRelative(good, truth), 0.02) << "seed " << seed;
@@ -47,7 +47,7 @@ TEST_F(MorphCheckTest, TrustsAGoodMorphAndDistrustsAnUpsideDownOne) {
     // Force the wrong answer: tell the coarse stage the carcass hangs head up. Whatever it
     // then makes of the cloud is wrong, and the check must say so without ground truth.
     MorphOptions flipped;
-    flipped.coarse.upright = UprightPrior{.target_up = -Eigen::Vector3d::UnitZ()};
+    flipped.coarse.upright = {.enabled = true, .target_up = -Eigen::Vector3d::UnitZ()};
     const CarcassResult wrong = MorphCarcass(*model_, carcass_->annotations, cloud, {}, flipped);
     if (!wrong.ok) continue;  // no such placement among the candidates: nothing to send
     ++wrong_morphs;
@@ -64,7 +64,7 @@ TEST_F(MorphCheckTest, UprightPriorOnlyConsidersPlacementsWithinTheTilt) {
   const Eigen::Matrix3Xd cloud = HangingCloud(*carcass_, 2000005u, &truth);
   for (const Eigen::Vector3d& up : {Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0, 0, -1)}) {
     CoarseOptions options;
-    options.upright = UprightPrior{.target_up = up, .max_tilt_deg = 30};
+    options.upright = {.enabled = true, .target_up = up, .max_tilt_deg = 30};
     const CoarseResult r = AlignCoarse(*model_, cloud, options);
     if (!r.ok) {
       EXPECT_NE(r.error.find("within 30 degrees of upright"), std::string::npos) << r.error;
