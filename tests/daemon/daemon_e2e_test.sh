@@ -32,13 +32,13 @@ virtual_scene: rig/scene.yaml
 lcm: {url: "$url"}
 can: {interface: loopback}
 morph: {template_up: [0, 0, 1], rig_up: [0, 0, 1], max_tilt_deg: 45}
-job: {max_result_age_ms: 20000}
+job: {max_result_age_ms: 60000}   # the sanitizer build morphs 20x slower (about 20 s)
 X_SawRig: {translation: [0, 0, 1.8], rotation_wxyz: [1, 0, 0, 0]}
 YAML
 "$daemon" --config "$work/vbd.yaml" --check-config >/dev/null || fail "--check-config"
 
 # Three carcasses; a listener counts the cut-lines messages.
-"$vbutcher" lcm-listen --url "$url" --count 4 --timeout 240 >"$work/listen.txt" &
+"$vbutcher" lcm-listen --url "$url" --count 4 --timeout 480 >"$work/listen.txt" &
 listener=$!
 "$daemon" --config "$work/vbd.yaml" --run-seconds 260 2>"$work/daemon.log" &
 daemon_pid=$!
