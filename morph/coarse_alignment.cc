@@ -74,11 +74,7 @@ Similarity RefineSimilarity(const Eigen::Matrix3Xd& template_samples,
       src.col(k) = template_samples.col(use[k]);
       dst.col(k) = matched.col(use[k]);
     }
-    const Eigen::Matrix4d T = Eigen::umeyama(src, dst, true);
-    const Eigen::Matrix3d sR = T.topLeftCorner<3, 3>();
-    fit.scale = std::cbrt(sR.determinant());
-    fit.R = sR / fit.scale;
-    fit.t = T.topRightCorner<3, 1>();
+    fit = Similarity::FromUmeyama(Eigen::umeyama(src, dst, true));
   }
   return fit;
 }
@@ -146,8 +142,8 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   // pairings with similar skeleton residuals can place the carcass upside down.
   AssociationOptions association = options.association;
   if (options.upright.enabled) {
-    association.from_up = options.upright.template_up;
-    association.to_up = options.upright.target_up;
+    association.from_up = options.upright.template_up.normalized();
+    association.to_up = options.upright.target_up.normalized();
     association.min_cos_up = std::cos(options.upright.max_tilt_deg * std::numbers::pi / 180.0);
   }
   const std::vector<Association> candidates =
@@ -156,20 +152,11 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     const Eigen::Matrix3Xd template_samples = EveryNth(model.V, options.verification_samples);
     const Eigen::Matrix3Xd target_samples = EveryNth(target, options.verification_samples);
     const PointIndex target_index(target);
-    double cos_tilt = -1.0;
-    Eigen::Vector3d template_up = Eigen::Vector3d::UnitZ(), target_up = Eigen::Vector3d::UnitZ();
-    if (options.upright.enabled) {
-      template_up = options.upright.template_up.normalized();
-      target_up = options.upright.target_up.normalized();
-      cos_tilt = std::cos(options.upright.max_tilt_deg * std::numbers::pi / 180.0);
-    }
+    // Every candidate already keeps within the upright prior's tilt (the search drops the
+    // others); only the refined fits below need checking again.
     std::vector<double> disagreements;
     double best = std::numeric_limits<double>::infinity();
     for (const Association& candidate : candidates) {
-      if ((candidate.from_to.R * template_up).dot(target_up) < cos_tilt) {
-        disagreements.push_back(std::numeric_limits<double>::infinity());
-        continue;
-      }
       disagreements.push_back(SurfaceDisagreement(template_samples, target_samples, target_index,
                                                   target, candidate.from_to));
       if (disagreements.back() < best) {
@@ -194,7 +181,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
         Association refined = candidates[k];
         refined.from_to = RefineSimilarity(template_samples, target_index, target,
                                            candidates[k].from_to, options.refine_iterations);
-        if ((refined.from_to.R * template_up).dot(target_up) < cos_tilt) continue;
+        if (!association.AcceptsOrientation(refined.from_to.R)) continue;
         disagreements[k] = SurfaceDisagreement(template_samples, target_samples, target_index,
                                                target, refined.from_to);
         if (disagreements[k] < best) {

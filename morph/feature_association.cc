@@ -6,6 +6,16 @@
 #include <limits>
 
 namespace vb::morph {
+
+Similarity Similarity::FromUmeyama(const Eigen::Matrix4d& T) {
+  Similarity fit;
+  const Eigen::Matrix3d sR = T.topLeftCorner<3, 3>();
+  fit.scale = std::cbrt(sR.determinant());
+  fit.R = sR / fit.scale;
+  fit.t = T.topRightCorner<3, 1>();
+  return fit;
+}
+
 namespace {
 
 struct Search {
@@ -18,8 +28,7 @@ struct Search {
   std::vector<int> a_slots;  // which `a` nodes get paired (the smaller side of each kind)
   bool a_is_from = true;
   double max_stretch = 1.8;
-  Eigen::Vector3d from_up = Eigen::Vector3d::UnitZ(), to_up = Eigen::Vector3d::UnitZ();
-  double min_cos_up = -1.0;
+  const AssociationOptions* options = nullptr;
 
   std::vector<int> assignment;  // per slot, index into b
   std::vector<bool> used;
@@ -65,9 +74,9 @@ struct Search {
     const Eigen::Matrix4d T = Eigen::umeyama(src, dst, true);
     const Eigen::Matrix3d sR = T.topLeftCorner<3, 3>();
     double cost = ((sR * src).colwise() + T.topRightCorner<3, 1>() - dst).squaredNorm();
-    const double scale = std::cbrt(sR.determinant());
+    const Similarity fit = Similarity::FromUmeyama(T);
     ++candidates;
-    if (min_cos_up > -1.0 && ((sR / scale) * from_up).dot(to_up) < min_cos_up) return;
+    if (!options->AcceptsOrientation(fit.R)) return;
     // Rank by residual per degree of freedom left after the 7-parameter similarity (fewer
     // pairs always fit better), doubled for every feature left unpaired: leaving one out
     // must at least halve the residual, as a spur or a merged limb does; the floor keeps
@@ -75,10 +84,7 @@ struct Search {
     const double per_dof = cost / static_cast<double>(std::max<Eigen::Index>(1, 3 * n - 7)) + 1e-12;
     cost = per_dof * std::pow(2.0, terminal_skips + junction_skips);
     if (best.size() == keep && cost >= best.back().cost) return;
-    Candidate c{cost, a_slots, assignment, {}};
-    c.fit.scale = scale;
-    c.fit.R = sR / scale;
-    c.fit.t = T.topRightCorner<3, 1>();
+    Candidate c{cost, a_slots, assignment, fit};
     best.insert(
         std::upper_bound(best.begin(), best.end(), c,
                          [](const Candidate& x, const Candidate& y) { return x.cost < y.cost; }),
@@ -197,9 +203,7 @@ std::vector<Association> AssociateFeatureNodes(const FeatureNodes& from_in,
   s.b_terminals = fb.num_terminals();
   s.max_stretch = options.max_relative_stretch;
   s.keep = static_cast<std::size_t>(std::max(1, options.keep_best));
-  s.from_up = options.from_up.normalized();
-  s.to_up = options.to_up.normalized();
-  s.min_cos_up = options.min_cos_up;
+  s.options = &options;
   for (int i = 0; i < fa.num_terminals(); ++i) s.a_slots.push_back(i);
   // Junctions: pair all of a's if it has no more than b; otherwise only as many as b has,
   // trying every subset of a's junctions.

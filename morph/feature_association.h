@@ -15,6 +15,8 @@ struct Similarity {
   Eigen::Vector3d t = Eigen::Vector3d::Zero();
 
   Eigen::Vector3d operator()(const Eigen::Vector3d& x) const { return scale * (R * x) + t; }
+  /// From the 4x4 result of Eigen::umeyama with scaling.
+  static Similarity FromUmeyama(const Eigen::Matrix4d& T);
   Similarity Inverse() const { return {1.0 / scale, R.transpose(), -(R.transpose() * t) / scale}; }
 };
 
@@ -39,10 +41,16 @@ struct AssociationOptions {
   /// How many of the best pairings to return (distinct, best first), for verification.
   int keep_best = 64;
   /// Pairings whose fit turns from_up to less than min_cos_up with to_up are not kept
-  /// (the coarse stage's upright prior; min_cos_up = -1 keeps every orientation).
+  /// (the coarse stage's upright prior; min_cos_up = -1 keeps every orientation). Unit
+  /// vectors.
   Eigen::Vector3d from_up = Eigen::Vector3d::UnitZ();
   Eigen::Vector3d to_up = Eigen::Vector3d::UnitZ();
   double min_cos_up = -1.0;
+
+  /// Whether a fit with rotation @p R keeps from_up within the allowed tilt of to_up.
+  bool AcceptsOrientation(const Eigen::Matrix3d& R) const {
+    return min_cos_up <= -1.0 || (R * from_up).dot(to_up) >= min_cos_up;
+  }
 };
 
 /// Exhaustive search for the feature correspondence that minimises eq. (3): every
