@@ -1,7 +1,9 @@
 #include "morph/coarse_alignment.h"
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <limits>
 #include <numbers>
@@ -98,6 +100,42 @@ std::vector<std::pair<int, int>> MutualNearest(const Eigen::Matrix3Xd& from,
   return pairs;
 }
 
+// Similarities laying the principal axes of @p from on those of @p to, one per proper
+// rotation of the cube (the axes' order and signs are not telling for a bent shape), scaled
+// by the ratio of the spreads.
+std::vector<Similarity> PrincipalFrameCandidates(const Eigen::Matrix3Xd& from,
+                                                 const Eigen::Matrix3Xd& to) {
+  auto frame = [](const Eigen::Matrix3Xd& p, Eigen::Vector3d* mean, double* spread) {
+    *mean = p.rowwise().mean();
+    const Eigen::Matrix3Xd centred = p.colwise() - *mean;
+    const Eigen::Matrix3d covariance = centred * centred.transpose() / static_cast<double>(p.cols());
+    *spread = std::sqrt(covariance.trace());
+    Eigen::Matrix3d axes = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance).eigenvectors();
+    if (axes.determinant() < 0) axes.col(0) = -axes.col(0);
+    return axes;
+  };
+  Eigen::Vector3d from_mean, to_mean;
+  double from_spread = 0, to_spread = 0;
+  const Eigen::Matrix3d from_axes = frame(from, &from_mean, &from_spread);
+  const Eigen::Matrix3d to_axes = frame(to, &to_mean, &to_spread);
+  std::vector<Similarity> out;
+  if (from_spread <= 0 || to_spread <= 0) return out;
+  std::array<int, 3> axis{0, 1, 2};
+  do {
+    for (int signs = 0; signs < 8; ++signs) {
+      Eigen::Matrix3d G = Eigen::Matrix3d::Zero();
+      for (int r = 0; r < 3; ++r) G(r, axis[static_cast<std::size_t>(r)]) = (signs >> r & 1) ? -1 : 1;
+      if (G.determinant() < 0) continue;
+      Similarity s;
+      s.R = to_axes * G * from_axes.transpose();
+      s.scale = to_spread / from_spread;
+      s.t = to_mean - s.scale * (s.R * from_mean);
+      out.push_back(s);
+    }
+  } while (std::next_permutation(axis.begin(), axis.end()));
+  return out;
+}
+
 Eigen::Matrix3Xd EveryNth(const Eigen::Matrix3Xd& points, int wanted) {
   const Eigen::Index step = std::max<Eigen::Index>(1, points.cols() / wanted);
   Eigen::Matrix3Xd out(3, (points.cols() + step - 1) / step);
@@ -146,52 +184,67 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     association.to_up = options.upright.target_up.normalized();
     association.min_cos_up = std::cos(options.upright.max_tilt_deg * std::numbers::pi / 180.0);
   }
-  const std::vector<Association> candidates =
+  std::vector<Association> candidates =
       AssociateFeatureNodes(model.features, result.target_features, association);
-  if (!candidates.empty()) {
-    const Eigen::Matrix3Xd template_samples = EveryNth(model.V, options.verification_samples);
-    const Eigen::Matrix3Xd target_samples = EveryNth(target, options.verification_samples);
-    const PointIndex target_index(target);
-    // Every candidate already keeps within the upright prior's tilt (the search drops the
-    // others); only the refined fits below need checking again.
-    std::vector<double> disagreements;
-    double best = std::numeric_limits<double>::infinity();
-    for (const Association& candidate : candidates) {
+  const std::size_t skeleton_candidates = candidates.size();
+  const Eigen::Matrix3Xd template_samples = EveryNth(model.V, options.verification_samples);
+  const Eigen::Matrix3Xd target_samples = EveryNth(target, options.verification_samples);
+  const PointIndex target_index(target);
+  // Every skeleton candidate already keeps within the upright prior's tilt (the search drops
+  // the others); refined fits and frame candidates are checked below.
+  std::vector<double> disagreements;
+  for (const Association& candidate : candidates) {
+    disagreements.push_back(SurfaceDisagreement(template_samples, target_samples, target_index,
+                                                target, candidate.from_to));
+  }
+  // The skeleton fits are only as good as the skeletons: the best few placements are
+  // refined against the surfaces before the final choice (README: placed clouds at sigma
+  // 16 mm 87 -> 97 %).
+  if (options.refine_iterations > 0) {
+    std::vector<std::size_t> order(candidates.size());
+    for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+    std::sort(order.begin(), order.end(),
+              [&](std::size_t a, std::size_t b) { return disagreements[a] < disagreements[b]; });
+    const std::size_t count =
+        std::min(order.size(), static_cast<std::size_t>(std::max(0, options.refine_candidates)));
+    for (std::size_t r = 0; r < count; ++r) {
+      const std::size_t k = order[r];
+      const Similarity refined = RefineSimilarity(template_samples, target_index, target,
+                                                  candidates[k].from_to,
+                                                  options.refine_iterations);
+      if (!association.AcceptsOrientation(refined.R)) continue;
+      const double d =
+          SurfaceDisagreement(template_samples, target_samples, target_index, target, refined);
+      if (d < disagreements[k]) {
+        candidates[k].from_to = refined;
+        disagreements[k] = d;
+      }
+    }
+  }
+  // Placements that do not come from the skeletons: the template's principal axes laid on
+  // the target's in each of the 24 ways a proper rotation can, then refined the same way.
+  // When the skeletons disagree too much for any pairing to be right (a shape with many
+  // alike limbs, a limb lost to occlusion), one of these is.
+  if (options.frame_candidates && options.refine_iterations > 0) {
+    for (const Similarity& start : PrincipalFrameCandidates(template_samples, target_samples)) {
+      if (!association.AcceptsOrientation(start.R)) continue;
+      Association candidate;
+      candidate.ok = true;
+      candidate.from_to = RefineSimilarity(template_samples, target_index, target, start,
+                                           options.refine_iterations);
+      if (!association.AcceptsOrientation(candidate.from_to.R)) continue;
       disagreements.push_back(SurfaceDisagreement(template_samples, target_samples, target_index,
                                                   target, candidate.from_to));
-      if (disagreements.back() < best) {
-        best = disagreements.back();
-        result.association = candidate;
-      }
+      candidates.push_back(std::move(candidate));
     }
-    // The skeleton fits are only as good as the skeletons: the best few placements are
-    // refined against the surfaces before the final choice (README: placed clouds at sigma
-    // 16 mm 87 -> 97 %).
-    if (options.refine_iterations > 0) {
-      std::vector<std::size_t> order(candidates.size());
-      for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
-      std::sort(order.begin(), order.end(),
-                [&](std::size_t a, std::size_t b) { return disagreements[a] < disagreements[b]; });
-      best = std::numeric_limits<double>::infinity();
-      const std::size_t count =
-          std::min(order.size(), static_cast<std::size_t>(std::max(0, options.refine_candidates)));
-      for (std::size_t r = 0; r < count; ++r) {
-        const std::size_t k = order[r];
-        if (!std::isfinite(disagreements[k])) break;
-        Association refined = candidates[k];
-        refined.from_to = RefineSimilarity(template_samples, target_index, target,
-                                           candidates[k].from_to, options.refine_iterations);
-        if (!association.AcceptsOrientation(refined.from_to.R)) continue;
-        disagreements[k] = SurfaceDisagreement(template_samples, target_samples, target_index,
-                                               target, refined.from_to);
-        if (disagreements[k] < best) {
-          best = disagreements[k];
-          result.association = refined;
-        }
-      }
-    }
+  }
+  if (!candidates.empty()) {
+    const std::size_t chosen = static_cast<std::size_t>(
+        std::min_element(disagreements.begin(), disagreements.end()) - disagreements.begin());
+    result.association = candidates[chosen];
+    result.placed_by_skeletons = chosen < skeleton_candidates;
     const double scale = result.association.from_to.scale;  // target units per template size
-    result.disagreement = best / scale;
+    result.disagreement = disagreements[chosen] / scale;
     result.runner_up_disagreement = std::numeric_limits<double>::infinity();
     const double cos_distinct = std::cos(options.distinct_angle_deg * std::numbers::pi / 180.0);
     for (std::size_t k = 0; k < candidates.size(); ++k) {
@@ -213,8 +266,9 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
                                        result.association.from_to, radius);
     repaired.junctions = MutualNearest(model.features.junctions, result.target_features.junctions,
                                        result.association.from_to, radius);
-    if (repaired.terminals.size() >= 2 &&
-        repaired.terminals.size() + repaired.junctions.size() >= 3) {
+    const bool from_frame = result.association.terminals.empty();  // a frame candidate
+    if (from_frame || (repaired.terminals.size() >= 2 &&
+                       repaired.terminals.size() + repaired.junctions.size() >= 3)) {
       result.association.terminals = std::move(repaired.terminals);
       result.association.junctions = std::move(repaired.junctions);
     }
@@ -257,8 +311,19 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     result.error = "embedded deformation failed: " + result.deformation.message;
     return result;
   }
-  const Eigen::Matrix3Xd posed =
-      DeformPoints(model.graph, model.vertex_weights, model.V, result.state);
+  Eigen::Matrix3Xd posed = DeformPoints(model.graph, model.vertex_weights, model.V, result.state);
+  // The pairs it pulls on may be wrong, or right but placed differently by the two
+  // skeletonisers; the deformation is kept only if it brings the surfaces closer than the
+  // rigid placement did.
+  if (options.check_deformation && !constraints.empty()) {
+    const double deformed = SurfaceDisagreement(EveryNth(posed, options.verification_samples),
+                                                target_samples, target_index, target, to_target);
+    result.deformation_kept = deformed <= result.disagreement * to_target.scale;
+    if (!result.deformation_kept) {
+      result.state = DeformationState::Identity(model.graph.num_nodes());
+      posed = model.V;
+    }
+  }
 
   // Back to the target's frame.
   result.template_to_target = Similarity{to_target.scale * model.size, to_target.R, to_target.t};

@@ -39,6 +39,12 @@ struct CoarseOptions {
   /// similarity fitting (this many rounds each) before the final choice; 0 rounds: none.
   int refine_candidates = 8;
   int refine_iterations = 8;
+  /// Also try the 24 placements laying the template's principal axes on the target's,
+  /// refined the same way, beside the skeleton pairings.
+  bool frame_candidates = true;
+  /// Keep the embedded deformation only when it brings the surfaces closer than the rigid
+  /// placement (CoarseResult::deformation_kept).
+  bool check_deformation = true;
   /// After the placement is chosen, features are paired again as mutual nearest neighbours
   /// within this distance (template sizes); 0 keeps the chosen candidate's own pairs.
   double repair_radius = 0.12;
@@ -55,8 +61,14 @@ struct CoarseResult {
   io::TriangleMesh mesh;          ///< posed template in the target's frame (template faces)
   Similarity template_to_target;  ///< from the feature association
   Association association;
+  /// Whether the chosen placement came from a skeleton pairing (else from the principal
+  /// axes; its feature pairs are then the mutual nearest ones).
+  bool placed_by_skeletons = true;
   FeatureNodes target_features;  ///< in the target's frame
   SolveSummary deformation;
+  /// False when the deformation moved the template away from the target's surface and the
+  /// rigid placement was kept instead.
+  bool deformation_kept = true;
   /// The node transforms found, in the template's normalised frame; the dense stage goes on
   /// from them.
   DeformationState state;

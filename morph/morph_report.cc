@@ -1,5 +1,6 @@
 #include "morph/morph_report.h"
 
+#include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -58,14 +59,19 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
                       {"rms_residual", r.association.rms_residual},
                       {"candidates_evaluated", r.association.candidates},
                       {"candidates_pruned", r.association.pruned},
-                      {"scale", r.template_to_target.scale / model.size}};
+                      {"scale", r.template_to_target.scale / model.size},
+                      {"placement", r.placed_by_skeletons ? "skeleton pairing" : "principal axes"},
+                      {"surface_disagreement", r.disagreement}};
+  if (std::isfinite(r.runner_up_disagreement))
+    j["association"]["runner_up_disagreement"] = r.runner_up_disagreement;
   j["deformation"] = {{"graph_nodes", model.graph.num_nodes()},
                       {"graph_edges", model.graph.edges.size()},
                       {"bridges", model.graph.bridges.size()},
                       {"iterations", r.deformation.iterations},
                       {"initial_cost", r.deformation.initial_cost},
                       {"final_cost", r.deformation.final_cost},
-                      {"message", r.deformation.message}};
+                      {"message", r.deformation.message},
+                      {"kept", r.deformation_kept}};
   if (dense != nullptr) {
     nlohmann::json rounds = nlohmann::json::array();
     for (const DenseRound& round : dense->rounds) {

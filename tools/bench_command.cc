@@ -26,6 +26,7 @@ struct Row {
   int index = 0;
   bool ok = false;
   bool association_correct = false;
+  bool deformation_kept = false;
   double rigid_mean = 0, rigid_max = 0, coarse_mean = 0,
          coarse_max = 0;  // fractions of target diagonal
   double coarse_mean_mm = 0;
@@ -62,6 +63,7 @@ Row Evaluate(const morph::TemplateModel& model, const Eigen::Matrix3Xd& input,
   Row row;
   const morph::CoarseResult r = morph::AlignCoarse(model, input, coarse);
   row.ok = r.ok;
+  row.deformation_kept = r.ok && r.deformation_kept;
   row.skeleton_s = r.skeleton_seconds;
   row.association_s = r.association_seconds;
   row.deformation_s = r.deformation_seconds;
@@ -99,13 +101,14 @@ Row Evaluate(const morph::TemplateModel& model, const Eigen::Matrix3Xd& input,
 void Summarise(const std::vector<Row>& rows, const std::string& shape, const std::string& input,
                double sigma) {
   std::vector<double> rigid, coarse_mean, coarse_max, total, skeleton, association, deformation;
-  int ok = 0, correct = 0, placed = 0, n = 0;
+  int ok = 0, correct = 0, placed = 0, kept = 0, n = 0;
   for (const Row& r : rows) {
     if (r.shape != shape || r.input != input || r.sigma_mm != sigma) continue;
     ++n;
     ok += r.ok;
     correct += r.association_correct;
     placed += r.ok && r.rigid_mean < 0.05;
+    kept += r.deformation_kept;
     if (!r.ok) continue;
     rigid.push_back(r.rigid_mean);
     coarse_mean.push_back(r.coarse_mean);
@@ -122,11 +125,12 @@ void Summarise(const std::vector<Row>& rows, const std::string& shape, const std
     return v.empty() ? std::nan("") : s / static_cast<double>(v.size());
   };
   std::printf(
-      "| %-10s | %-9s | %5.0f | %3d | %5.1f %% | %6.1f %% | %6.1f %% | %7.2f %% | %7.2f %% | %7.2f "
-      "%% | "
+      "| %-10s | %-9s | %5.0f | %3d | %5.1f %% | %6.1f %% | %6.1f %% | %7.2f %% | %5.1f %% | %7.2f "
+      "%% | %7.2f %% | "
       "%6.3f | %6.3f | %6.3f | %6.3f |\n",
       shape.c_str(), input.c_str(), sigma, n, 100.0 * ok / n, 100.0 * placed / n,
-      100.0 * correct / n, 100 * mean(rigid), 100 * mean(coarse_mean), 100 * mean(coarse_max),
+      100.0 * correct / n, 100 * mean(rigid), 100.0 * kept / n, 100 * mean(coarse_mean),
+      100 * mean(coarse_max),
       Median(skeleton), Median(association), Median(deformation), Median(total));
 }
 
@@ -245,10 +249,10 @@ int RunBenchCommand(const BenchOptions& given) {
   }
 
   std::printf(
-      "\n| shape      | input     | sigma |   n |   ok    | placed  | assoc ok | rigid mean | "
+      "\n| shape      | input     | sigma |   n |   ok    | placed  | assoc ok | rigid mean | ED kept | "
       "coarse mean | coarse max | skel s | assoc s | ED s   | total s |\n");
   std::printf(
-      "|------------|-----------|-------|-----|---------|---------|----------|------------|------"
+      "|------------|-----------|-------|-----|---------|---------|----------|------------|---------|------"
       "-------|------------|--------|---------|--------|---------|\n");
   for (const auto& [shape, input, sigma] : groups) Summarise(rows, shape, input, sigma);
   std::printf(
@@ -258,13 +262,14 @@ int RunBenchCommand(const BenchOptions& given) {
 
   std::ofstream csv(options.csv);
   csv << "shape,input,sigma_mm,index,ok,association_correct,rigid_mean_rel,rigid_max_rel,coarse_"
-         "mean_rel,coarse_max_rel,"
+         "mean_rel,coarse_max_rel,deformation_kept,"
          "coarse_mean_mm,skeleton_s,association_s,deformation_s,total_s,template_features,target_"
          "features,pairs\n";
   for (const Row& r : rows) {
     csv << r.shape << ',' << r.input << ',' << r.sigma_mm << ',' << r.index << ',' << r.ok << ','
         << r.association_correct << ',' << r.rigid_mean << ',' << r.rigid_max << ','
-        << r.coarse_mean << ',' << r.coarse_max << ',' << r.coarse_mean_mm << ',' << r.skeleton_s
+        << r.coarse_mean << ',' << r.coarse_max << ',' << r.deformation_kept << ','
+        << r.coarse_mean_mm << ',' << r.skeleton_s
         << ',' << r.association_s << ',' << r.deformation_s << ',' << r.total_s << ','
         << r.template_features << ',' << r.target_features << ',' << r.pairs << '\n';
   }

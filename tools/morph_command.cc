@@ -67,10 +67,13 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   io::WriteMesh(options.out_path, full ? dense.mesh : coarse.mesh);
   std::printf(
       "morph: template model %.2f s; target skeleton %.3f s, association %.3f s (%ld candidates, "
-      "rms %.4g), deformation %.3f s (%d iterations); coarse total %.3f s\n",
+      "rms %.4g, placed by %s), deformation %.3f s (%d iterations, %s); coarse total %.3f s\n",
       model.seconds, coarse.skeleton_seconds, coarse.association_seconds,
-      coarse.association.candidates, coarse.association.rms_residual, coarse.deformation_seconds,
-      coarse.deformation.iterations, coarse.total_seconds);
+      coarse.association.candidates, coarse.association.rms_residual,
+      coarse.placed_by_skeletons ? "skeleton pairing" : "principal axes",
+      coarse.deformation_seconds, coarse.deformation.iterations,
+      coarse.deformation_kept ? "kept" : "dropped: the rigid placement fit the surface better",
+      coarse.total_seconds);
   if (full) {
     std::printf("morph: dense: normals %.3f s, %zu rounds, total %.3f s\n", dense.normals_seconds,
                 dense.rounds.size(), dense.total_seconds);

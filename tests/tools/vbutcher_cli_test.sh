@@ -39,6 +39,8 @@ check "morph writes the posed template and a report" 0 "coarse total" \
   "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/m.ply" --report "$work/r.json"
 [ -s "$work/m.ply" ] || { echo "FAIL: morph wrote no mesh"; failures=$((failures + 1)); }
 grep -q '"ok": true' "$work/r.json" || { echo "FAIL: report does not say ok"; failures=$((failures + 1)); }
+grep -q '"placement"' "$work/r.json" || { echo "FAIL: report does not say where the placement came from"; failures=$((failures + 1)); }
+grep -q '"kept"' "$work/r.json" || { echo "FAIL: report does not say whether the deformation was kept"; failures=$((failures + 1)); }
 printf 'OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n' > "$work/open.off"
 # The full stage with the template's cut annotations: morphed mesh, cuts and part measures.
 check "morph --stage full transfers the cuts" 0 "part shoulder" \
