@@ -27,6 +27,22 @@ int RunMorphCommand(const MorphCommandOptions& options) {
     throw InputError("morph: --cuts needs --annotations (or a --model, which holds them)");
   if (!options.annotations_path.empty() && options.stage != "full")
     throw InputError("morph: --annotations needs --stage full (cuts come from the dense stage)");
+  morph::MorphOptions morph_options;
+  if (options.template_up.empty() != options.target_up.empty())
+    throw InputError("morph: the upright prior needs both --template-up and --target-up");
+  if (!options.template_up.empty()) {
+    auto direction = [](const std::vector<double>& v, const char* flag) {
+      const Eigen::Vector3d d(v.at(0), v.at(1), v.at(2));
+      if (!d.allFinite() || d.norm() < 1e-9)
+        throw InputError(std::string("morph: ") + flag + " must be a non-zero direction");
+      return d.normalized();
+    };
+    morph::UprightPrior& prior = morph_options.coarse.upright;
+    prior.enabled = true;
+    prior.template_up = direction(options.template_up, "--template-up");
+    prior.target_up = direction(options.target_up, "--target-up");
+    prior.max_tilt_deg = options.max_tilt_deg;
+  }
   morph::TemplateModel model;
   io::Annotations annotations;
   if (!options.model_path.empty()) {
@@ -49,9 +65,9 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   // The full stage is the pipeline's own path (morph, whole-morph check, cuts).
   morph::CarcassResult result;
   if (options.stage == "full") {
-    result = morph::MorphCarcass(model, annotations, target.points, target.normals);
+    result = morph::MorphCarcass(model, annotations, target.points, target.normals, morph_options);
   } else {
-    result.coarse = morph::AlignCoarse(model, target.points);
+    result.coarse = morph::AlignCoarse(model, target.points, morph_options.coarse);
   }
   const morph::CoarseResult& coarse = result.coarse;
   const morph::DenseResult& dense = result.dense;

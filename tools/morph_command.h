@@ -2,6 +2,9 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
+
+#include "morph/coarse_alignment.h"
 
 namespace vb::tools {
 
@@ -14,6 +17,9 @@ struct MorphCommandOptions {
   std::filesystem::path report_path;
   std::filesystem::path annotations_path;  ///< with --stage full: cuts to transfer
   std::filesystem::path cuts_path;         ///< transferred cuts and part measures (JSON)
+  /// Upright prior (CoarseOptions::upright), on when both directions are given.
+  std::vector<double> template_up, target_up;
+  double max_tilt_deg = morph::UprightPrior{}.max_tilt_deg;
 };
 
 /// `vbutcher morph`: loads the template and target, morphs, writes the deformed template

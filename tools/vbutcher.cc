@@ -60,6 +60,19 @@ int main(int argc, char** argv) {
                         "Template cut annotations (vbutcher-annotations YAML); needs --stage full");
   morph_cmd->add_option("--cuts", morph.cuts_path,
                         "Transferred cut planes, lines, confidence and part measures (JSON)");
+  morph_cmd
+      ->add_option("--template-up", morph.template_up,
+                   "Upright prior: the template's up direction (x y z); needs --target-up")
+      ->expected(3);
+  morph_cmd
+      ->add_option("--target-up", morph.target_up,
+                   "Upright prior: the target's up direction (x y z), e.g. the rig's")
+      ->expected(3);
+  morph_cmd
+      ->add_option("--max-tilt-deg", morph.max_tilt_deg,
+                   "Upright prior: placements tilted more than this are not considered")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 180.0));
 
   CLI::App* template_cmd =
       app.add_subcommand("template", "Compile a template model once, offline, or inspect one");

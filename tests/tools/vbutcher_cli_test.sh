@@ -41,6 +41,19 @@ check "morph writes the posed template and a report" 0 "coarse total" \
 grep -q '"ok": true' "$work/r.json" || { echo "FAIL: report does not say ok"; failures=$((failures + 1)); }
 grep -q '"placement"' "$work/r.json" || { echo "FAIL: report does not say where the placement came from"; failures=$((failures + 1)); }
 grep -q '"kept"' "$work/r.json" || { echo "FAIL: report does not say whether the deformation was kept"; failures=$((failures + 1)); }
+# The upright prior: targets hanging from the gambrel, as on the line.
+check "synth writes hanging targets" 0 "template:" "$vbutcher" synth --out "$work/up" --count 1 --seed 4 --upright
+check "morph with the upright prior" 0 "coarse total" \
+  "$vbutcher" morph --template "$work/up/template.ply" --target "$work/up/target_000.ply" --out "$work/u.ply" \
+  --template-up 0 0 1 --target-up 0 0 1 --max-tilt-deg 30
+check "the upright prior needs both directions" 2 "--target-up" \
+  "$vbutcher" morph --template "$work/up/template.ply" --target "$work/up/target_000.ply" --out "$work/x.ply" --template-up 0 0 1
+check "the upright prior refuses a zero direction" 2 "--template-up" \
+  "$vbutcher" morph --template "$work/up/template.ply" --target "$work/up/target_000.ply" --out "$work/x.ply" \
+  --template-up 0 0 0 --target-up 0 0 1
+check "the upright prior's tilt is range-checked" nonzero "max-tilt-deg" \
+  "$vbutcher" morph --template "$work/up/template.ply" --target "$work/up/target_000.ply" --out "$work/x.ply" \
+  --template-up 0 0 1 --target-up 0 0 1 --max-tilt-deg 200
 printf 'OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n' > "$work/open.off"
 # The full stage with the template's cut annotations: morphed mesh, cuts and part measures.
 check "morph --stage full transfers the cuts" 0 "part shoulder" \
