@@ -100,6 +100,12 @@ std::vector<std::pair<int, int>> MutualNearest(const Eigen::Matrix3Xd& from,
   return pairs;
 }
 
+// A fit a placement can be built on: degenerate targets (all points in one spot) give a zero
+// or non-finite scale.
+bool Usable(const Similarity& fit) {
+  return std::isfinite(fit.scale) && fit.scale > 0 && fit.R.allFinite() && fit.t.allFinite();
+}
+
 // Similarities laying the principal axes of @p from on those of @p to, one per proper
 // rotation of the cube (the axes' order and signs are not telling for a bent shape), scaled
 // by the ratio of the spreads.
@@ -212,7 +218,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
       const Similarity refined = RefineSimilarity(template_samples, target_index, target,
                                                   candidates[k].from_to,
                                                   options.refine_iterations);
-      if (!association.AcceptsOrientation(refined.R)) continue;
+      if (!Usable(refined) || !association.AcceptsOrientation(refined.R)) continue;
       const double d =
           SurfaceDisagreement(template_samples, target_samples, target_index, target, refined);
       if (d < disagreements[k]) {
@@ -230,9 +236,14 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
       if (!association.AcceptsOrientation(start.R)) continue;
       Association candidate;
       candidate.ok = true;
+      if (skeleton_candidates > 0) {  // the search's counts, for the report
+        candidate.candidates = candidates.front().candidates;
+        candidate.pruned = candidates.front().pruned;
+      }
       candidate.from_to = RefineSimilarity(template_samples, target_index, target, start,
                                            options.refine_iterations);
-      if (!association.AcceptsOrientation(candidate.from_to.R)) continue;
+      if (!Usable(candidate.from_to) || !association.AcceptsOrientation(candidate.from_to.R))
+        continue;
       disagreements.push_back(SurfaceDisagreement(template_samples, target_samples, target_index,
                                                   target, candidate.from_to));
       candidates.push_back(std::move(candidate));

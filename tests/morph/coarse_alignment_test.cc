@@ -93,6 +93,20 @@ TEST_F(CoarseAlignmentTest, ReportsBadTargetsInsteadOfThrowing) {
   r = AlignCoarse(*model_, Eigen::Matrix3Xd::Zero(3, 500));
   EXPECT_FALSE(r.ok);
   EXPECT_FALSE(r.error.empty());
+  // Degenerate shapes: points on a segment, on a flat square. Either refused with a reason or
+  // placed with finite coordinates, never NaN.
+  Eigen::Matrix3Xd line = Eigen::Matrix3Xd::Zero(3, 500);
+  line.row(0) = Eigen::RowVectorXd::LinSpaced(500, 0.0, 1.0);
+  Eigen::Matrix3Xd flat = Eigen::Matrix3Xd::Random(3, 2000);
+  flat.row(2).setZero();
+  for (const Eigen::Matrix3Xd& degenerate : {line, flat}) {
+    r = AlignCoarse(*model_, degenerate);
+    if (r.ok) {
+      EXPECT_TRUE(r.mesh.V.allFinite());
+    } else {
+      EXPECT_FALSE(r.error.empty());
+    }
+  }
 }
 
 }  // namespace
