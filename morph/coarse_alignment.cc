@@ -114,9 +114,11 @@ std::vector<Similarity> PrincipalFrameCandidates(const Eigen::Matrix3Xd& from,
   auto frame = [](const Eigen::Matrix3Xd& p, Eigen::Vector3d* mean, double* spread) {
     *mean = p.rowwise().mean();
     const Eigen::Matrix3Xd centred = p.colwise() - *mean;
-    const Eigen::Matrix3d covariance = centred * centred.transpose() / static_cast<double>(p.cols());
+    const Eigen::Matrix3d covariance =
+        centred * centred.transpose() / static_cast<double>(p.cols());
     *spread = std::sqrt(covariance.trace());
-    Eigen::Matrix3d axes = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance).eigenvectors();
+    Eigen::Matrix3d axes =
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance).eigenvectors();
     if (axes.determinant() < 0) axes.col(0) = -axes.col(0);
     return axes;
   };
@@ -130,7 +132,8 @@ std::vector<Similarity> PrincipalFrameCandidates(const Eigen::Matrix3Xd& from,
   do {
     for (int signs = 0; signs < 8; ++signs) {
       Eigen::Matrix3d G = Eigen::Matrix3d::Zero();
-      for (int r = 0; r < 3; ++r) G(r, axis[static_cast<std::size_t>(r)]) = (signs >> r & 1) ? -1 : 1;
+      for (int r = 0; r < 3; ++r)
+        G(r, axis[static_cast<std::size_t>(r)]) = (signs >> r & 1) ? -1 : 1;
       if (G.determinant() < 0) continue;
       Similarity s;
       s.R = to_axes * G * from_axes.transpose();
@@ -216,8 +219,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     for (std::size_t r = 0; r < count; ++r) {
       const std::size_t k = order[r];
       const Similarity refined = RefineSimilarity(template_samples, target_index, target,
-                                                  candidates[k].from_to,
-                                                  options.refine_iterations);
+                                                  candidates[k].from_to, options.refine_iterations);
       if (!Usable(refined) || !association.AcceptsOrientation(refined.R)) continue;
       const double d =
           SurfaceDisagreement(template_samples, target_samples, target_index, target, refined);

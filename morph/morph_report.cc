@@ -64,14 +64,15 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
                       {"surface_disagreement", r.disagreement}};
   if (std::isfinite(r.runner_up_disagreement))
     j["association"]["runner_up_disagreement"] = r.runner_up_disagreement;
-  j["deformation"] = {{"graph_nodes", model.graph.num_nodes()},
-                      {"graph_edges", model.graph.edges.size()},
-                      {"bridges", model.graph.bridges.size()},
-                      {"iterations", r.deformation.iterations},
-                      {"initial_cost", r.deformation.initial_cost},
-                      {"final_cost", r.deformation.final_cost},
-                      {"message", r.deformation.message},
-                      {"kept", r.deformation_kept}};
+  nlohmann::json& deformation = j["deformation"];
+  deformation["graph_nodes"] = model.graph.num_nodes();
+  deformation["graph_edges"] = model.graph.edges.size();
+  deformation["bridges"] = model.graph.bridges.size();
+  deformation["iterations"] = r.deformation.iterations;
+  deformation["initial_cost"] = r.deformation.initial_cost;
+  deformation["final_cost"] = r.deformation.final_cost;
+  deformation["message"] = r.deformation.message;
+  deformation["kept"] = r.deformation_kept;
   if (dense != nullptr) {
     nlohmann::json rounds = nlohmann::json::array();
     for (const DenseRound& round : dense->rounds) {

@@ -1,5 +1,4 @@
 #include "tools/bench_command.h"
-#include "tools/bench_stats.h"
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -15,6 +14,7 @@
 #include "morph/coarse_alignment.h"
 #include "morph/template_model.h"
 #include "perception/carcass_generator.h"
+#include "tools/bench_stats.h"
 
 namespace vb::tools {
 namespace {
@@ -130,8 +130,8 @@ void Summarise(const std::vector<Row>& rows, const std::string& shape, const std
       "%6.3f | %6.3f | %6.3f | %6.3f |\n",
       shape.c_str(), input.c_str(), sigma, n, 100.0 * ok / n, 100.0 * placed / n,
       100.0 * correct / n, 100 * mean(rigid), 100.0 * kept / n, 100 * mean(coarse_mean),
-      100 * mean(coarse_max),
-      Median(skeleton), Median(association), Median(deformation), Median(total));
+      100 * mean(coarse_max), Median(skeleton), Median(association), Median(deformation),
+      Median(total));
 }
 
 }  // namespace
@@ -249,10 +249,12 @@ int RunBenchCommand(const BenchOptions& given) {
   }
 
   std::printf(
-      "\n| shape      | input     | sigma |   n |   ok    | placed  | assoc ok | rigid mean | ED kept | "
+      "\n| shape      | input     | sigma |   n |   ok    | placed  | assoc ok | rigid mean | ED "
+      "kept | "
       "coarse mean | coarse max | skel s | assoc s | ED s   | total s |\n");
   std::printf(
-      "|------------|-----------|-------|-----|---------|---------|----------|------------|---------|------"
+      "|------------|-----------|-------|-----|---------|---------|----------|------------|--------"
+      "-|------"
       "-------|------------|--------|---------|--------|---------|\n");
   for (const auto& [shape, input, sigma] : groups) Summarise(rows, shape, input, sigma);
   std::printf(
@@ -269,9 +271,9 @@ int RunBenchCommand(const BenchOptions& given) {
     csv << r.shape << ',' << r.input << ',' << r.sigma_mm << ',' << r.index << ',' << r.ok << ','
         << r.association_correct << ',' << r.rigid_mean << ',' << r.rigid_max << ','
         << r.coarse_mean << ',' << r.coarse_max << ',' << r.deformation_kept << ','
-        << r.coarse_mean_mm << ',' << r.skeleton_s
-        << ',' << r.association_s << ',' << r.deformation_s << ',' << r.total_s << ','
-        << r.template_features << ',' << r.target_features << ',' << r.pairs << '\n';
+        << r.coarse_mean_mm << ',' << r.skeleton_s << ',' << r.association_s << ','
+        << r.deformation_s << ',' << r.total_s << ',' << r.template_features << ','
+        << r.target_features << ',' << r.pairs << '\n';
   }
   std::printf("wrote %s\n", options.csv.string().c_str());
   return 0;

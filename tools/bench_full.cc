@@ -284,14 +284,15 @@ int RunFullBench(const BenchOptions& options) {
   }
 
   std::ostringstream table;
-  table << "| input | sigma mm | n | ok | avg max err % | avg max err mm | mean err mm | coarse "
-           "mean err mm | volume RMSE | area RMSE | cut angle deg | cut dist mm | cut dist, true "
-           "morph mm | worst cut dist mm | confidence | median s | coarse s | dense s | sent | sent > 10 mm | refused <= 10 "
-           "mm |\n"
-           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  table
+      << "| input | sigma mm | n | ok | avg max err % | avg max err mm | mean err mm | "
+         "coarse mean err mm | volume RMSE | area RMSE | cut angle deg | cut dist mm | "
+         "cut dist, true morph mm | worst cut dist mm | confidence | median s | coarse s | "
+         "dense s | sent | sent > 10 mm | refused <= 10 mm |\n"
+         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& [input, sigma] : groups) {
-    std::vector<double> max_rel, max_mm, mean_mm, coarse_mm, volume, area, angle, distance,
-        floor, confidence, total, coarse_s, dense_s;
+    std::vector<double> max_rel, max_mm, mean_mm, coarse_mm, volume, area, angle, distance, floor,
+        confidence, total, coarse_s, dense_s;
     int n = 0, ok = 0;
     // What a line would have done: a job is sent only when every cut reaches the daemon's
     // minimum confidence; a wrong job has a cut plane more than 10 mm off on average.
@@ -329,8 +330,8 @@ int RunFullBench(const BenchOptions& options) {
                   "| %s | %g | %d | %d | %.2f | %.1f | %.1f | %.1f | %.3f | %.3f | %.2f | %.2f | "
                   "%.2f | %.1f | %.2f | %.2f | %.2f | %.2f | %d | %d | %d |\n",
                   input.c_str(), sigma, n, ok, 100 * Mean(max_rel), Mean(max_mm), Mean(mean_mm),
-                  Mean(coarse_mm), Rms(volume), Rms(area), Mean(angle), Mean(distance), Mean(floor), worst,
-                  Mean(confidence), Median(total), Median(coarse_s), Median(dense_s), sent,
+                  Mean(coarse_mm), Rms(volume), Rms(area), Mean(angle), Mean(distance), Mean(floor),
+                  worst, Mean(confidence), Median(total), Median(coarse_s), Median(dense_s), sent,
                   sent_wrong, refused_right);
     table << line;
   }
@@ -374,8 +375,8 @@ int RunFullBench(const BenchOptions& options) {
     }
     for (std::size_t c = 0; c < carcass.annotations.cuts.size(); ++c) {
       if (r.ok)
-        csv << ',' << r.cut_angle_deg[c] << ',' << r.cut_distance_mm[c] << ','
-            << r.cut_floor_mm[c] << ',' << r.cut_confidence[c];
+        csv << ',' << r.cut_angle_deg[c] << ',' << r.cut_distance_mm[c] << ',' << r.cut_floor_mm[c]
+            << ',' << r.cut_confidence[c];
       else
         csv << ",,,,";
     }
