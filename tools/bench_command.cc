@@ -71,7 +71,7 @@ Row Evaluate(const morph::TemplateModel& model, const Eigen::Matrix3Xd& input,
   row.template_features = model.features.num_terminals() + model.features.num_junctions();
   row.target_features = r.target_features.num_terminals() + r.target_features.num_junctions();
   row.pairs = static_cast<int>(r.association.terminals.size() + r.association.junctions.size());
-  const double diagonal = io::BoundingBoxDiagonal(truth);
+  const double diagonal = TrueSize(model.mesh.V, truth);
   if (r.association.ok) {
     Eigen::Matrix3Xd rigid(3, model.V.cols());
     for (Eigen::Index i = 0; i < model.V.cols(); ++i)
@@ -150,7 +150,11 @@ io::TriangleMesh BendShape(const io::TriangleMesh& mesh, std::uint64_t seed) {
   const Eigen::Vector3d across = Eigen::Vector3d::Unit((axis + 1) % 3);
   const double bend = 0.35 * u(rng), twist = 0.35 * u(rng);  // radians over half the length
   io::TriangleMesh out = mesh;
-  const Eigen::Quaterniond q = Eigen::Quaterniond::UnitRandom();
+  // A uniformly random rotation from the seeded generator (Eigen's UnitRandom draws from
+  // std::rand, whose state depends on what ran before).
+  std::normal_distribution<double> gauss;
+  Eigen::Quaterniond q(gauss(rng), gauss(rng), gauss(rng), gauss(rng));
+  q.normalize();
   const double scale = 1.0 + 0.2 * u(rng);
   for (int i = 0; i < mesh.num_vertices(); ++i) {
     const Eigen::Vector3d p = mesh.V.col(i) - centre;

@@ -88,7 +88,7 @@ FullRow Evaluate(const morph::TemplateModel& model, const io::Annotations& annot
     row.error = r.error;
     return row;
   }
-  const double diagonal = io::BoundingBoxDiagonal(truth.mesh.V);
+  const double diagonal = TrueSize(model.mesh.V, truth.mesh.V);
   {
     const Eigen::VectorXd e = (coarse.mesh.V - truth.mesh.V).colwise().norm();
     row.coarse_max_rel = e.maxCoeff() / diagonal;
@@ -272,7 +272,7 @@ int RunFullBench(const BenchOptions& options) {
             morph::AlignDense(shape, coarse, noisy.V, io::VertexNormals(noisy), dense_options);
         if (!dense.ok) continue;
         ++sr.ok;
-        const double diagonal = io::BoundingBoxDiagonal(truth.V);
+        const double diagonal = TrueSize(shape.mesh.V, truth.V);
         sr.total_s.push_back(Since(start));
         sr.coarse_mean_rel.push_back((coarse.mesh.V - truth.V).colwise().norm().mean() / diagonal);
         const Eigen::VectorXd e = (dense.mesh.V - truth.V).colwise().norm();

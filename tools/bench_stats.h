@@ -1,8 +1,12 @@
 #pragma once
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <vector>
+
+#include "io/mesh_measures.h"
 
 namespace vb::tools {
 
@@ -20,6 +24,15 @@ inline double Quantile(std::vector<double> v, double q) {
   std::sort(v.begin(), v.end());
   const auto rank = static_cast<std::size_t>(std::ceil(q * static_cast<double>(v.size())));
   return v[std::min(v.size() - 1, rank == 0 ? 0 : rank - 1)];
+}
+
+/// The size relative errors are taken against, as the paper means it: the template's
+/// bounding-box diagonal in its own frame (@p rest, its vertices) times the scale of the best
+/// similarity taking @p rest onto @p truth (same vertex order). Unlike the diagonal of
+/// @p truth's own axis-aligned box, it does not grow when the target is turned.
+inline double TrueSize(const Eigen::Matrix3Xd& rest, const Eigen::Matrix3Xd& truth) {
+  const Eigen::Matrix4d T = Eigen::umeyama(rest, truth, true);
+  return io::BoundingBoxDiagonal(rest) * std::cbrt(T.topLeftCorner<3, 3>().determinant());
 }
 
 }  // namespace vb::tools
