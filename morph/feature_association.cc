@@ -27,7 +27,6 @@ struct Search {
   int terminal_skips = 0, junction_skips = 0;
   std::vector<int> a_slots;  // which `a` nodes get paired (the smaller side of each kind)
   bool a_is_from = true;
-  double max_stretch = 1.8;
   const AssociationOptions* options = nullptr;
 
   std::vector<int> assignment;  // per slot, index into b
@@ -56,7 +55,7 @@ struct Search {
         hi = std::max(hi, db / da);
       }
     }
-    return hi <= max_stretch * lo || hi == 0.0;
+    return hi <= options->max_relative_stretch * lo || hi == 0.0;
   }
 
   void Evaluate() {
@@ -201,7 +200,6 @@ std::vector<Association> AssociateFeatureNodes(const FeatureNodes& from_in,
   s.b = Stack(fb);
   s.a_terminals = fa.num_terminals();
   s.b_terminals = fb.num_terminals();
-  s.max_stretch = options.max_relative_stretch;
   s.keep = static_cast<std::size_t>(std::max(1, options.keep_best));
   s.options = &options;
   for (int i = 0; i < fa.num_terminals(); ++i) s.a_slots.push_back(i);

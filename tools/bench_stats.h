@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "io/mesh_measures.h"
+#include "morph/feature_association.h"
 
 namespace vb::tools {
 
@@ -31,8 +32,8 @@ inline double Quantile(std::vector<double> v, double q) {
 /// similarity taking @p rest onto @p truth (same vertex order). Unlike the diagonal of
 /// @p truth's own axis-aligned box, it does not grow when the target is turned.
 inline double TrueSize(const Eigen::Matrix3Xd& rest, const Eigen::Matrix3Xd& truth) {
-  const Eigen::Matrix4d T = Eigen::umeyama(rest, truth, true);
-  return io::BoundingBoxDiagonal(rest) * std::cbrt(T.topLeftCorner<3, 3>().determinant());
+  return io::BoundingBoxDiagonal(rest) *
+         morph::Similarity::FromUmeyama(Eigen::umeyama(rest, truth, true)).scale;
 }
 
 }  // namespace vb::tools

@@ -35,7 +35,7 @@ int RunMorphCommand(const MorphCommandOptions& options) {
       const Eigen::Vector3d d(v.at(0), v.at(1), v.at(2));
       if (!d.allFinite() || d.norm() < 1e-9)
         throw InputError(std::string("morph: ") + flag + " must be a non-zero direction");
-      return d.normalized();
+      return d;  // AlignCoarse normalises
     };
     morph::UprightPrior& prior = morph_options.coarse.upright;
     prior.enabled = true;
