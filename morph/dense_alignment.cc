@@ -60,35 +60,46 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   const int step = std::max(1, static_cast<int>(model.V.cols()) / std::max(1, options.num_samples));
   for (int i = 0; i < model.V.cols(); i += step) samples.push_back(i);
 
-  // Each target point's plane passes through the centroid of its neighbours, which averages
-  // the sensor noise along the normal away.
-  Eigen::Matrix3Xd centroids(3, points.cols());
-  {
-    std::vector<int> found;
-    std::vector<double> distances;
-    for (Eigen::Index i = 0; i < points.cols(); ++i) {
-      index.Nearest(points.col(i), options.surface_neighbours, &found, &distances);
-      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-      for (int j : found) sum += points.col(j);
-      centroids.col(i) = sum / static_cast<double>(found.size());
-    }
-  }
-
-  // Sensor noise, estimated from the spread of the points about their local planes: the data
-  // term is weighted down as it grows (a maximum-likelihood weighting).
+  // Each target point's plane passes through the (corrected) centroid of its neighbours,
+  // which averages the sensor noise along the normal away. The spread of the points about
+  // their local planes gives the noise, and the data term is weighted down as it grows (a
+  // maximum-likelihood weighting).
   double noise = 0.0;
-  {
-    std::vector<double> offsets(static_cast<std::size_t>(points.cols()));
-    for (Eigen::Index i = 0; i < points.cols(); ++i)
-      offsets[static_cast<std::size_t>(i)] =
-          std::abs(normals.col(i).dot(points.col(i) - centroids.col(i)));
-    std::nth_element(offsets.begin(), offsets.begin() + offsets.size() / 2, offsets.end());
-    noise = 1.4826 * offsets[offsets.size() / 2];
-  }
+  const Eigen::Matrix3Xd centroids = PlanePoints(points, normals, index, options.surface_neighbours,
+                                                 options.correct_plane_offset, &noise);
   result.noise = noise;
   const double relative_noise = noise / options.noise_reference;
   const double noise_factor = 1.0 / (1.0 + relative_noise * relative_noise);
   result.state = coarse.state;
+  std::vector<int> reverse_samples;
+  if (options.reverse_samples > 0) {
+    const int reverse_step = std::max(1, static_cast<int>(points.cols()) / options.reverse_samples);
+    for (int j = 0; j < points.cols(); j += reverse_step) reverse_samples.push_back(j);
+  }
+  // Eq. (14) for template vertex i against target point j's plane.
+  const auto plane_constraint = [&](int i, int j, DenseRound* info) {
+    info->mean_plane_distance += std::abs(normals.col(j).dot(posed.V.col(i) - centroids.col(j)));
+    PointConstraint c;
+    c.rest = model.V.col(i);
+    c.target = centroids.col(j);
+    c.normal = normals.col(j);
+    for (Eigen::Index n = 0; n < model.vertex_weights.nodes.rows(); ++n) {
+      if (model.vertex_weights.nodes(n, i) < 0) continue;
+      c.nodes.push_back(model.vertex_weights.nodes(n, i));
+      c.weights.push_back(model.vertex_weights.weights(n, i));
+    }
+    return c;
+  };
+  // Eq. (12) on pairs (template vertex, target point): which of them to keep.
+  const auto filter = [&](const std::vector<int>& vertices, const std::vector<int>& targets) {
+    Eigen::Matrix3Xd a1(3, static_cast<Eigen::Index>(vertices.size()));
+    Eigen::Matrix3Xd a2(3, a1.cols());
+    for (std::size_t k = 0; k < vertices.size(); ++k) {
+      a1.col(static_cast<Eigen::Index>(k)) = posed.V.col(vertices[k]);
+      a2.col(static_cast<Eigen::Index>(k)) = points.col(targets[k]);
+    }
+    return FilterAssociations(a1, a2, options.filter);
+  };
   for (int round = 0; round < options.rounds; ++round) {
     DenseRound info;
     phase = std::chrono::steady_clock::now();
@@ -98,32 +109,35 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     info.association_seconds = Since(phase);
 
     phase = std::chrono::steady_clock::now();
-    Eigen::Matrix3Xd a1(3, pairs.size()), a2(3, pairs.size());
-    for (int k = 0; k < pairs.size(); ++k) {
-      a1.col(k) = posed.V.col(pairs.source[static_cast<std::size_t>(k)]);
-      a2.col(k) = points.col(pairs.target[static_cast<std::size_t>(k)]);
-    }
-    const std::vector<bool> kept = FilterAssociations(a1, a2, options.filter);
+    const std::vector<bool> kept = filter(pairs.source, pairs.target);
     info.filter_seconds = Since(phase);
 
     std::vector<PointConstraint> constraints;
     for (int k = 0; k < pairs.size(); ++k) {
       if (!kept[static_cast<std::size_t>(k)]) continue;
-      const int i = pairs.source[static_cast<std::size_t>(k)];
-      const int j = pairs.target[static_cast<std::size_t>(k)];
-      PointConstraint c;
-      c.rest = model.V.col(i);
-      c.target = centroids.col(j);
-      c.normal = normals.col(j);
-      for (Eigen::Index n = 0; n < model.vertex_weights.nodes.rows(); ++n) {
-        if (model.vertex_weights.nodes(n, i) < 0) continue;
-        c.nodes.push_back(model.vertex_weights.nodes(n, i));
-        c.weights.push_back(model.vertex_weights.weights(n, i));
-      }
-      info.mean_plane_distance += std::abs(c.normal.dot(a1.col(k) - c.target));
-      constraints.push_back(std::move(c));
+      constraints.push_back(plane_constraint(pairs.source[static_cast<std::size_t>(k)],
+                                             pairs.target[static_cast<std::size_t>(k)], &info));
     }
     info.kept = static_cast<int>(constraints.size());
+
+    if (!reverse_samples.empty()) {
+      phase = std::chrono::steady_clock::now();
+      const PointIndex posed_index(posed.V);
+      const DenseAssociation back = AssociateDense(points, normals, reverse_samples, posed.V,
+                                                   posed.N, posed_index, options.association);
+      info.association_seconds += Since(phase);
+      phase = std::chrono::steady_clock::now();
+      // back.source are target points, back.target template vertices.
+      const std::vector<bool> back_kept = filter(back.target, back.source);
+      info.filter_seconds += Since(phase);
+      info.reverse_associated = back.size();
+      for (int k = 0; k < back.size(); ++k) {
+        if (!back_kept[static_cast<std::size_t>(k)]) continue;
+        constraints.push_back(plane_constraint(back.target[static_cast<std::size_t>(k)],
+                                               back.source[static_cast<std::size_t>(k)], &info));
+        ++info.reverse_kept;
+      }
+    }
     if (constraints.size() < 10) {
       result.error = "dense association found " + std::to_string(constraints.size()) +
                      " usable pairs in round " + std::to_string(round + 1) +

@@ -37,6 +37,49 @@ Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointInde
   return normals;
 }
 
+Eigen::Matrix3Xd PlanePoints(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
+                             const PointIndex& index, int k, bool correct_curvature,
+                             double* noise) {
+  VB_DEMAND(k >= 1 && normals.cols() == points.cols() && index.size() == points.cols());
+  Eigen::Matrix3Xd centroids(3, points.cols());
+  // Each point's neighbours, kept for the correction: k per point, -1 where fewer exist.
+  Eigen::MatrixXi neighbours = Eigen::MatrixXi::Constant(k, points.cols(), -1);
+  std::vector<int> found;
+  std::vector<double> distances;
+  for (Eigen::Index i = 0; i < points.cols(); ++i) {
+    index.Nearest(points.col(i), k, &found, &distances);
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (std::size_t n = 0; n < found.size(); ++n) {
+      sum += points.col(found[n]);
+      neighbours(static_cast<Eigen::Index>(n), i) = found[n];
+    }
+    centroids.col(i) = sum / static_cast<double>(found.size());
+  }
+  Eigen::VectorXd offsets(points.cols());
+  for (Eigen::Index i = 0; i < points.cols(); ++i)
+    offsets[i] = normals.col(i).dot(points.col(i) - centroids.col(i));
+  if (noise != nullptr) {
+    *noise = 0.0;
+    if (points.cols() > 0) {
+      std::vector<double> magnitudes(offsets.data(), offsets.data() + offsets.size());
+      for (double& m : magnitudes) m = std::abs(m);
+      const auto middle = magnitudes.begin() + static_cast<std::ptrdiff_t>(magnitudes.size() / 2);
+      std::nth_element(magnitudes.begin(), middle, magnitudes.end());
+      *noise = 1.4826 * *middle;
+    }
+  }
+  if (correct_curvature) {
+    for (Eigen::Index i = 0; i < points.cols(); ++i) {
+      double sum = 0.0;
+      int count = 0;
+      for (Eigen::Index n = 0; n < k && neighbours(n, i) >= 0; ++n, ++count)
+        sum += offsets[neighbours(n, i)];
+      centroids.col(i) += normals.col(i) * (sum / static_cast<double>(count));
+    }
+  }
+  return centroids;
+}
+
 DenseAssociation AssociateDense(const Eigen::Matrix3Xd& source,
                                 const Eigen::Matrix3Xd& source_normals,
                                 const std::vector<int>& samples, const Eigen::Matrix3Xd& target,

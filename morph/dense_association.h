@@ -46,6 +46,20 @@ DenseAssociation AssociateDense(const Eigen::Matrix3Xd& source,
                                 const PointIndex& target_index,
                                 const DenseAssociationOptions& options = {});
 
+/// A point on each target point's local plane for eq. (14): the centroid of its @p k nearest
+/// points (which averages sensor noise along the normal away), and, if @p correct_curvature,
+/// moved along the point's normal by the mean offset of those neighbours' points from their
+/// own centroids. A centroid on a convex patch lies inside the surface by about the curvature
+/// times the squared radius of the neighbourhood, nearly the same at neighbouring points;
+/// adding that back removes the bias and keeps the averaging.
+/// @param[in] points, normals 3 by N (unit normals); @p index over @p points; k >= 1.
+/// @param[out] noise if not null, 1.4826 x the median offset of the points from their
+///   (uncorrected) centroids along the normal: a robust estimate of the noise's standard
+///   deviation that also reads some curvature.
+Eigen::Matrix3Xd PlanePoints(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
+                             const PointIndex& index, int k, bool correct_curvature,
+                             double* noise = nullptr);
+
 struct AssociationFilterOptions {
   int neighbours = 8;  ///< k of the graph on the template's associated points
   /// Residuals below this are never trimmed, whatever the statistics say: r(i) is the mean
