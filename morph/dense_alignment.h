@@ -74,7 +74,7 @@ struct DenseRound {
   int kept = 0;                      ///< left after eq. (12)
   int reverse_associated = 0;        ///< target points paired back to the template
   int reverse_kept = 0;              ///< of those, left after eq. (12)
-  double mean_plane_distance = 0.0;  ///< of the kept pairs before the solve, template sizes
+  double mean_plane_distance = 0.0;  ///< of the kept pairs, both ways, before the solve; template sizes
   SolveSummary deformation;
   double association_seconds = 0.0;
   double filter_seconds = 0.0;
