@@ -70,11 +70,12 @@ struct DenseOptions {
 };
 
 struct DenseRound {
-  int associated = 0;                ///< pairs found by eq. (11)
-  int kept = 0;                      ///< left after eq. (12)
-  int reverse_associated = 0;        ///< target points paired back to the template
-  int reverse_kept = 0;              ///< of those, left after eq. (12)
-  double mean_plane_distance = 0.0;  ///< of the kept pairs, both ways, before the solve; template sizes
+  int associated = 0;          ///< pairs found by eq. (11)
+  int kept = 0;                ///< left after eq. (12)
+  int reverse_associated = 0;  ///< target points paired back to the template
+  int reverse_kept = 0;        ///< of those, left after eq. (12)
+  /// Of the kept pairs, both ways, before the solve; template sizes.
+  double mean_plane_distance = 0.0;
   SolveSummary deformation;
   double association_seconds = 0.0;
   double filter_seconds = 0.0;
