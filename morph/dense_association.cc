@@ -42,18 +42,17 @@ Eigen::Matrix3Xd PlanePoints(const Eigen::Matrix3Xd& points, const Eigen::Matrix
                              double* noise) {
   VB_DEMAND(k >= 1 && normals.cols() == points.cols() && index.size() == points.cols());
   Eigen::Matrix3Xd centroids(3, points.cols());
-  // Each point's neighbours, kept for the correction: k per point, -1 where fewer exist.
-  Eigen::MatrixXi neighbours = Eigen::MatrixXi::Constant(k, points.cols(), -1);
+  // Each point's neighbours, kept for the correction only: k per point, -1 where fewer exist.
+  Eigen::MatrixXi neighbours;
+  if (correct_curvature) neighbours = Eigen::MatrixXi::Constant(k, points.cols(), -1);
   std::vector<int> found;
   std::vector<double> distances;
   for (Eigen::Index i = 0; i < points.cols(); ++i) {
     index.Nearest(points.col(i), k, &found, &distances);
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    for (std::size_t n = 0; n < found.size(); ++n) {
-      sum += points.col(found[n]);
-      neighbours(static_cast<Eigen::Index>(n), i) = found[n];
-    }
+    for (int j : found) sum += points.col(j);
     centroids.col(i) = sum / static_cast<double>(found.size());
+    if (correct_curvature) std::copy(found.begin(), found.end(), neighbours.col(i).data());
   }
   Eigen::VectorXd offsets(points.cols());
   for (Eigen::Index i = 0; i < points.cols(); ++i)
@@ -61,8 +60,8 @@ Eigen::Matrix3Xd PlanePoints(const Eigen::Matrix3Xd& points, const Eigen::Matrix
   if (noise != nullptr) {
     *noise = 0.0;
     if (points.cols() > 0) {
-      std::vector<double> magnitudes(offsets.data(), offsets.data() + offsets.size());
-      for (double& m : magnitudes) m = std::abs(m);
+      const Eigen::VectorXd absolute = offsets.cwiseAbs();
+      std::vector<double> magnitudes(absolute.data(), absolute.data() + absolute.size());
       const auto middle = magnitudes.begin() + static_cast<std::ptrdiff_t>(magnitudes.size() / 2);
       std::nth_element(magnitudes.begin(), middle, magnitudes.end());
       *noise = 1.4826 * *middle;
