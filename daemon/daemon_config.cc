@@ -57,9 +57,9 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
   const io::YamlReader r(path.string());
   r.ExpectFormat(root, "virtualbutcherd-config", DaemonConfig::kFormatVersion);
   for (const auto& entry : root) {
-    static const char* kTop[] = {"format",        "version", "template", "rig",
-                                 "virtual_scene", "capture", "fusion",   "job",
-                                 "morph",         "lcm",     "can",      "X_SawRig"};
+    static const char* kTop[] = {"format",  "version", "template", "rig",   "virtual_scene",
+                                 "capture", "fusion",  "job",      "morph", "lcm",
+                                 "can",     "memory",  "X_SawRig"};
     const std::string k = entry.first.as<std::string>();
     bool known = false;
     for (const char* allowed : kTop) known |= k == allowed;
@@ -162,6 +162,11 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
   if (c.can.interface.size() > 15)
     r.Fail(root["can"]["interface"], "can.interface",
            "'" + c.can.interface + "' is longer than an interface name can be");
+
+  // The morph's peak is about 100 MiB (scripts/bench-daemon logs it per job); mimalloc hands
+  // the arena out in 32 MiB segments, one or more per thread.
+  const Section memory(r, root, "memory", {"arena_mib"});
+  memory.Int("arena_mib", 128, 16384, &c.memory.arena_mib);
 
   if (root["X_SawRig"]) c.X_SawRig = r.Isometry(root["X_SawRig"], "X_SawRig");
   return c;

@@ -46,6 +46,12 @@ struct CanOptions {
   int send_deadline_ms = 20;
 };
 
+/// The loop threads' fixed memory budget (daemon/memory_budget.h): one arena reserved at
+/// start, from which the main, capture and job threads take every allocation.
+struct MemoryOptions {
+  int arena_mib = 512;
+};
+
 struct LcmOptions {
   std::string url = "udpm://239.255.76.67:7667?ttl=0";
   io::LcmChannels channels;
@@ -69,6 +75,7 @@ struct DaemonConfig {
   MorphSection morph;
   LcmOptions lcm;
   CanOptions can;
+  MemoryOptions memory;
   /// Pose of the rig frame in the saw frame: waypoints go out as p_Saw = X_SawRig p_Rig.
   Eigen::Isometry3d X_SawRig = Eigen::Isometry3d::Identity();
   int watchdog_ms = 0;  ///< filled from $WATCHDOG_USEC by the daemon, not from the file

@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "daemon/job.h"
+#include "daemon/memory_budget.h"
 #include "io/mesh_io.h"
 #include "io/saw_protocol.h"
 #include "morph/morph_carcass.h"
@@ -69,6 +70,7 @@ void Pipeline::Stop() {
 }
 
 void Pipeline::CaptureLoop() {
+  const MemoryBudgetScope budget;  // from here on this thread allocates from the arena
   perception::RigCapture& capture = *capture_;
   const int n = capture.num_cameras();
   std::vector<std::uint64_t> since(static_cast<std::size_t>(n), 0);
@@ -156,6 +158,7 @@ void Pipeline::CaptureLoop() {
 }
 
 void Pipeline::JobLoop() {
+  const MemoryBudgetScope budget;
   Eigen::Matrix3Xd points, normals;
   while (!stop_) {
     std::int64_t frames_ns = 0, frames_utime = 0;
@@ -185,6 +188,7 @@ void Pipeline::JobLoop() {
 void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
                       std::int64_t frames_ns, std::int64_t frames_utime, double fusion_s,
                       const std::string& refusal) {
+  ResetMemoryBudgetPeak();  // the log's peak is then this job's
   JobReport report;
   std::uint32_t number;
   std::uint8_t sequence;

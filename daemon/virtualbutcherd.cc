@@ -1,9 +1,9 @@
 // virtualbutcherd: the line service. Captures, fuses, morphs the compiled template onto each
 // carcass, publishes the cut lines on LCM and sends the band saw its waypoints on CAN.
 // Logs go to stderr with journald priority prefixes (<3> error, <4> warning, <6> info).
-#include <CLI/CLI.hpp>
 #include <signal.h>
 
+#include <CLI/CLI.hpp>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "daemon/daemon_config.h"
+#include "daemon/memory_budget.h"
 #include "daemon/notify.h"
 #include "daemon/pipeline.h"
 #include "daemon/saw_link.h"
@@ -24,11 +25,14 @@ std::atomic<int> g_signal{0};
 void OnSignal(int signal) { g_signal = signal; }
 
 void PrintReport(const vb::daemon::JobReport& r) {
-  std::fprintf(stderr, "<6>virtualbutcherd: %s: %s; %d points, fusion %.3f s, morph %.3f s, "
+  std::fprintf(stderr,
+               "<6>virtualbutcherd: %s: %s; %d points, fusion %.3f s, morph %.3f s, "
                "send %.3f s, latency %.3f s, rss %ld KiB, peak %ld KiB\n",
                r.carcass_id.c_str(), r.sent_to_saw ? "waypoints sent" : r.status.c_str(),
                r.fused_points, r.fusion_s, r.morph_s, r.send_s, r.latency_s,
                vb::io::ProcessStatusKib("VmRSS"), vb::io::ProcessStatusKib("VmHWM"));
+  std::fprintf(stderr, "<6>virtualbutcherd: %s   memory: %s\n", r.carcass_id.c_str(),
+               vb::daemon::DescribeMemoryBudget(vb::daemon::GetMemoryBudgetStats()).c_str());
   for (std::size_t c = 0; c < r.planes.size(); ++c) {
     const vb::io::Plane& p = r.planes[c];
     std::fprintf(stderr,
@@ -48,7 +52,8 @@ int main(int argc, char** argv) {
   int max_jobs = 0;
   double run_seconds = 0;
   app.add_option("-c,--config", config_path, "Configuration file")->capture_default_str();
-  app.add_flag("--check-config", check_only, "Validate the configuration and the template, then exit");
+  app.add_flag("--check-config", check_only,
+               "Validate the configuration and the template, then exit");
   app.add_option("--max-jobs", max_jobs, "Exit after this many jobs (tests, demo)");
   app.add_option("--run-seconds", run_seconds, "Exit after this long (tests, demo)");
   CLI11_PARSE(app, argc, argv);
@@ -73,6 +78,20 @@ int main(int argc, char** argv) {
     std::printf("%s: configuration and template are valid\n", config_path.c_str());
     return 0;
   }
+  // The fixed memory budget, before any loop thread starts.
+  if (vb::daemon::MemoryBudgetAvailable()) {
+    const std::string why =
+        vb::daemon::ReserveMemoryBudget(static_cast<std::size_t>(config.memory.arena_mib) << 20);
+    if (!why.empty()) {
+      std::fprintf(stderr, "<3>virtualbutcherd: %s: memory.arena_mib: %d: %s\n",
+                   config.source.c_str(), config.memory.arena_mib, why.c_str());
+      return 1;
+    }
+  } else {
+    std::fprintf(stderr,
+                 "<4>virtualbutcherd: no memory budget in this build (sanitizers keep "
+                 "their own allocator)\n");
+  }
   if (!config.virtual_scene.empty())
     setenv("VB_VIRTUAL_SCENE", std::filesystem::absolute(config.virtual_scene).c_str(), 1);
 
@@ -89,7 +108,7 @@ int main(int argc, char** argv) {
     publisher = std::make_unique<vb::io::LcmPublisher>(config.lcm.url, config.lcm.channels);
     saw = vb::daemon::MakeSawLink(config.can.interface);
     pipeline = std::make_unique<vb::daemon::Pipeline>(config, std::move(artifact), publisher.get(),
-                                                       saw.get());
+                                                      saw.get());
     pipeline->Start();
   } catch (const vb::InputError& e) {
     std::fprintf(stderr, "<3>virtualbutcherd: %s\n", e.what());
@@ -101,6 +120,7 @@ int main(int argc, char** argv) {
   std::fprintf(stderr, "<6>virtualbutcherd: LCM on %s, saw link %s (%s)\n", config.lcm.url.c_str(),
                config.can.interface.c_str(), saw->state().c_str());
   notifier.Ready("serving; " + pipeline->StatusLine());
+  const vb::daemon::MemoryBudgetScope budget;  // the main loop allocates from the arena too
 
   const auto start = std::chrono::steady_clock::now();
   auto next_tick = start;
@@ -111,8 +131,9 @@ int main(int argc, char** argv) {
     next_tick += std::chrono::milliseconds(vb::io::saw::kHeartbeatPeriodMs);
     std::this_thread::sleep_until(next_tick);
     if (g_signal == SIGHUP) {
-      std::fprintf(stderr, "<4>virtualbutcherd: SIGHUP: configuration reload is not supported "
-                           "(cameras and budgets are sized at start); restart the service\n");
+      std::fprintf(stderr,
+                   "<4>virtualbutcherd: SIGHUP: configuration reload is not supported "
+                   "(cameras and budgets are sized at start); restart the service\n");
       g_signal = 0;
     }
     if (g_signal != 0) break;

@@ -43,6 +43,7 @@ TEST_F(DaemonConfigTest, ReadsEverySectionWithDefaultsForTheRest) {
                       "job: {presence_min_points: 3000, min_confidence: 0.7}\n"
                       "lcm: {url: \"memq://\", status_channel: LINE3_STATUS}\n"
                       "can: {interface: vcan0}\n"
+                      "memory: {arena_mib: 1024}\n"
                       "X_SawRig: {translation: [0, 0, 1.8], rotation_wxyz: [1, 0, 0, 0]}\n");
   const DaemonConfig c = LoadDaemonConfig(path);
   EXPECT_EQ(c.capture.fps, 15);
@@ -54,6 +55,7 @@ TEST_F(DaemonConfigTest, ReadsEverySectionWithDefaultsForTheRest) {
   EXPECT_EQ(c.lcm.channels.status, "LINE3_STATUS");
   EXPECT_EQ(c.lcm.channels.cut_lines, "VB_CUT_LINES");
   EXPECT_EQ(c.can.interface, "vcan0");
+  EXPECT_EQ(c.memory.arena_mib, 1024);
   EXPECT_EQ(c.X_SawRig.translation().z(), 1.8);
   EXPECT_EQ(c.rig.cameras.size(), 4u);
   EXPECT_EQ(c.template_path, dir_ / "lamb.vbt");
@@ -94,6 +96,9 @@ TEST_F(DaemonConfigTest, NamesFileLineKeyAndValue) {
   EXPECT_THAT(Error("X_SawRig: {translation: [0, 0, 0], rotation_wxyz: [2, 0, 0, 0]}\n"),
               HasSubstr("X_SawRig.rotation_wxyz: is not a unit quaternion"));
   EXPECT_THAT(Error("virtual_scene: nowhere.yaml\n"), HasSubstr("virtual_scene: no file"));
+  EXPECT_THAT(Error("memory: {arena_mib: 64}\n"),
+              HasSubstr("memory.arena_mib: value 64 is outside [128, 16384]"));
+  EXPECT_THAT(Error("memory: {arena: 512}\n"), HasSubstr("memory.arena: unknown key"));
   const auto missing =
       dir_.Write("m.yaml", "format: virtualbutcherd-config\nversion: 1\nrig: rig.yaml\n");
   EXPECT_THROW(LoadDaemonConfig(missing), InputError);

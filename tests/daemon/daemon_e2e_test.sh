@@ -100,4 +100,20 @@ mean = sum(dists) / len(dists)
 print("mean %.1f mm, worst %.1f mm" % (mean, max(dists)))
 sys.exit(0 if mean <= 20 and max(dists) <= 50 else 1)
 PY
-echo "ok: 3 carcasses, 3 jobs, cut planes near the truth; a camera down refused the 4th with a reason; the daemon kept serving"
+# The fixed memory budget: the loop threads took every allocation from the arena, none from
+# the heap, and each job allocated (so the count is about real work). Sanitizer builds have
+# no budget and say so.
+if grep -q "no memory budget in this build" "$work/daemon.log"; then
+  echo "memory budget: not in this build (sanitizers)"
+else
+  python3 - "$work/daemon.log" <<'PY' || fail "the loop threads allocated outside their budget"
+import re, sys
+rows = [(int(a), int(h)) for a, h in re.findall(
+    r"memory: arena .*?; (\d+) allocations from the arena, (\d+) from the heap", open(sys.argv[1]).read())]
+print("memory budget per job (arena, heap allocations so far):", rows)
+ok = len(rows) == 4 and all(h == 0 for _, h in rows)
+ok = ok and all(rows[i + 1][0] > rows[i][0] for i in range(3))
+sys.exit(0 if ok else 1)
+PY
+fi
+echo "ok: 3 carcasses, 3 jobs, cut planes near the truth; a camera down refused the 4th with a reason; the daemon kept serving; no allocation outside the memory budget"

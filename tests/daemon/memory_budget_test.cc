@@ -1,0 +1,212 @@
+#include "daemon/memory_budget.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <array>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <new>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "daemon/job.h"
+#include "daemon/saw_link.h"
+#include "io/lcm_publisher.h"
+#include "morph/morph_carcass.h"
+#include "perception/carcass_generator.h"
+#include "tests/support/lamb_fixture.h"
+
+namespace vb::daemon {
+namespace {
+
+constexpr std::size_t kArenaBytes = std::size_t{256} << 20;
+
+// The arena is reserved once per process, as the daemon does at start.
+class MemoryBudgetTest : public test::LambTemplateTest {
+ protected:
+  static void SetUpTestSuite() {
+    test::LambTemplateTest::SetUpTestSuite();
+    if (MemoryBudgetAvailable()) {
+      const std::string why = ReserveMemoryBudget(kArenaBytes);
+      ASSERT_EQ(why, "");
+    }
+  }
+  void SetUp() override {
+    if (!MemoryBudgetAvailable()) GTEST_SKIP() << "sanitizer build: no memory budget";
+  }
+};
+
+// Runs @p work on a new thread that has a budget, as the daemon's loop threads do.
+template <typename Work>
+void OnBudgetThread(Work&& work) {
+  std::thread([&] {
+    const MemoryBudgetScope scope;
+    work();
+  }).join();
+}
+
+TEST_F(MemoryBudgetTest, ReservesOnlyOnce) {
+  EXPECT_EQ(GetMemoryBudgetStats().arena_bytes, kArenaBytes);
+  EXPECT_EQ(ReserveMemoryBudget(kArenaBytes), "the memory budget's arena is already reserved");
+}
+
+// Every way C and C++ code asks for memory lands in the arena on a budget thread, and
+// nowhere near it on another thread.
+TEST_F(MemoryBudgetTest, EveryAllocationOfABudgetThreadLandsInTheArena) {
+  const MemoryBudgetStats before = GetMemoryBudgetStats();
+  OnBudgetThread([] {
+    void* m = std::malloc(100);
+    void* c = std::calloc(1000, 8);
+    void* r = std::realloc(std::malloc(16), 1 << 20);  // moved on growth
+    void* a = std::aligned_alloc(4096, 8192);
+    void* pm = nullptr;
+    ASSERT_EQ(posix_memalign(&pm, 256, 3000), 0);
+    auto* n = new double[1000];
+    auto* big = new std::array<char, 20 << 20>;  // beyond mimalloc's large-object size
+    struct alignas(64) Aligned {
+      double x[8];
+    };
+    auto* al = new Aligned;
+    std::vector<int> v;
+    for (int i = 0; i < 100000; ++i) v.push_back(i);
+    std::string s(1000, 'x');
+    Eigen::MatrixXd e = Eigen::MatrixXd::Random(300, 300);
+    Eigen::MatrixXd product = e * e.transpose();
+    const std::vector<const void*> blocks = {
+        m, c, r, a, pm, n, big, al, v.data(), s.data(), product.data()};
+    for (std::size_t i = 0; i < blocks.size(); ++i)
+      EXPECT_TRUE(InMemoryBudget(blocks[i])) << "block " << i;
+    EXPECT_EQ(reinterpret_cast<std::uintptr_t>(a) % 4096, 0u);
+    EXPECT_EQ(reinterpret_cast<std::uintptr_t>(pm) % 256, 0u);
+    EXPECT_EQ(reinterpret_cast<std::uintptr_t>(al) % 64, 0u);
+    for (void* p : {m, c, r, a, pm}) std::free(p);
+    delete[] n;
+    delete big;
+    delete al;
+  });
+  const MemoryBudgetStats after = GetMemoryBudgetStats();
+  EXPECT_GE(after.arena_allocations - before.arena_allocations, 12);
+  EXPECT_EQ(after.heap_allocations, before.heap_allocations);
+
+  // A thread without a budget allocates elsewhere, and is counted as such.
+  std::thread([] {
+    const auto block = std::make_unique<char[]>(100);
+    EXPECT_FALSE(InMemoryBudget(block.get()));
+  }).join();
+  EXPECT_GT(GetMemoryBudgetStats().other_allocations, after.other_allocations);
+}
+
+// A block made on a budget thread and freed on another gives its bytes back.
+TEST_F(MemoryBudgetTest, BlocksFreedOnAnotherThreadLeaveTheArena) {
+  const std::size_t live_before = GetMemoryBudgetStats().arena_live_bytes;
+  std::vector<std::unique_ptr<double[]>> blocks;
+  blocks.reserve(100);  // this thread's
+  OnBudgetThread([&] {
+    for (int i = 0; i < 100; ++i) blocks.emplace_back(new double[10000]);
+  });
+  EXPECT_GE(GetMemoryBudgetStats().arena_live_bytes, live_before + 100 * 80000);
+  blocks.clear();
+  EXPECT_EQ(GetMemoryBudgetStats().arena_live_bytes, live_before);
+}
+
+// Past the budget, allocations still succeed, from the ordinary heap, and are counted: the
+// daemon's log then says the budget is too small. Once memory is freed, the arena serves
+// again.
+TEST_F(MemoryBudgetTest, AFullArenaFallsBackToTheHeapAndCountsIt) {
+  const MemoryBudgetStats before = GetMemoryBudgetStats();
+  OnBudgetThread([] {
+    std::vector<void*> blocks;
+    int outside = 0;
+    for (std::size_t total = 0; total < kArenaBytes * 3 / 2; total += 40 << 20) {
+      void* p = std::malloc(40 << 20);
+      ASSERT_NE(p, nullptr);
+      outside += !InMemoryBudget(p);
+      blocks.push_back(p);
+    }
+    EXPECT_GE(outside, 3);
+    EXPECT_LT(outside, static_cast<int>(blocks.size()));
+    for (void* p : blocks) std::free(p);
+    void* again = std::malloc(40 << 20);
+    EXPECT_TRUE(InMemoryBudget(again));
+    std::free(again);
+  });
+  EXPECT_GE(GetMemoryBudgetStats().heap_allocations - before.heap_allocations, 3);
+}
+
+// The proof for the part of the daemon that allocates: the job thread's whole job
+// (morph with Ceres and Eigen, cut-lines message, saw job, CAN frames, LCM publish), for
+// several carcasses in a row. After the first, no allocation reaches the heap, and the
+// arena holds no more after each job than after the first: nothing accumulates.
+TEST_F(MemoryBudgetTest, SteadyStateJobsAllocateOnlyFromTheArenaAndGiveItAllBack) {
+  io::LcmPublisher publisher("memq://");
+  std::unique_ptr<SawLink> saw = MakeSawLink("loopback");
+  morph::MorphOptions options;
+  options.coarse.upright.enabled = true;
+  std::vector<Eigen::Matrix3Xd> clouds;
+  for (std::uint64_t seed : {31u, 32u, 33u, 34u}) {
+    perception::PoseOptions pose;
+    pose.arbitrary_orientation = false;
+    const perception::PosedCarcass truth =
+        perception::PoseCarcass(*carcass_, perception::SampleCarcassPose(seed, pose));
+    perception::CloudOptions cloud;
+    cloud.sigma_m = 0.003;
+    cloud.missing_regions = true;
+    clouds.push_back(perception::SampleSurfaceCloud(truth, cloud, seed + 1).points);
+  }
+  struct After {
+    MemoryBudgetStats stats;
+    std::string status;
+  };
+  std::vector<After> after;
+  after.reserve(clouds.size());  // here, so that the record itself does not grow in the arena
+  OnBudgetThread([&] {
+    std::uint32_t number = 0;
+    for (const Eigen::Matrix3Xd& cloud : clouds) {
+      ++number;
+      ResetMemoryBudgetPeak();
+      {
+        const morph::CarcassResult result =
+            morph::MorphCarcass(*model_, carcass_->annotations, cloud, {}, options);
+        char id[16];
+        std::snprintf(id, sizeof(id), "C%06u", number);
+        vbutcher::cut_lines_t message =
+            MakeCutLines(result, carcass_->annotations, {id, number, "lamb", 1, 0});
+        io::saw::Job job;
+        std::string why = MakeSawJob(result, Eigen::Isometry3d::Identity(), 0.6, number,
+                                     static_cast<std::uint8_t>(number), &job);
+        if (why.empty()) {
+          io::saw::Protector protector;
+          std::array<io::saw::Frame, io::saw::kMaxJobFrames> frames;
+          const int count = io::saw::EncodeJob(job, &protector, &frames);
+          for (int i = 0; i < count; ++i)
+            if (!saw->Send(frames[static_cast<std::size_t>(i)],
+                           SawLink::Clock::now() + std::chrono::milliseconds(20)))
+              why = "a CAN frame missed its deadline";
+        }
+        message.waypoints_sent = why.empty();
+        message.status = why.empty() ? "ok" : why;
+        publisher.Publish(message);
+        after.push_back({GetMemoryBudgetStats(), message.status});
+      }
+      after.back().stats = GetMemoryBudgetStats();  // with the job's memory freed
+    }
+  });
+  ASSERT_EQ(after.size(), clouds.size());
+  for (std::size_t j = 0; j < after.size(); ++j) EXPECT_EQ(after[j].status, "ok") << "job " << j;
+  const MemoryBudgetStats& first = after.front().stats;
+  for (std::size_t j = 1; j < after.size(); ++j) {
+    const MemoryBudgetStats& s = after[j].stats;
+    const MemoryBudgetStats& previous = after[j - 1].stats;
+    EXPECT_EQ(s.heap_allocations, first.heap_allocations) << "job " << j;
+    EXPECT_GT(s.arena_allocations - previous.arena_allocations, 10000)
+        << "job " << j << " hardly allocated: is it still running on this thread?";
+    EXPECT_LE(s.arena_live_bytes, first.arena_live_bytes) << "job " << j;
+    EXPECT_LT(s.arena_peak_bytes, kArenaBytes / 2) << "job " << j;  // the daemon's is 512 MiB
+  }
+}
+
+}  // namespace
+}  // namespace vb::daemon
