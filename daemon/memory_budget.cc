@@ -28,7 +28,7 @@ std::atomic<int> g_arena_id{-1};
 // locked instruction on the allocation path); GetMemoryBudgetStats reads them from anywhere.
 // live counts bytes allocated minus bytes freed by this thread, so one thread's may go
 // negative when it frees another's blocks; the sum over threads is the arena's content.
-struct ThreadCounters {
+struct alignas(64) ThreadCounters {  // a cache line each: no false sharing
   std::atomic<long> arena{0}, heap{0};
   std::atomic<long long> live{0}, peak{0};
 };
@@ -38,6 +38,9 @@ std::atomic<int> g_num_threads{0};
 // Threads without a budget: several may write, so these are atomic additions.
 std::atomic<long> g_other_allocations{0};
 std::atomic<long long> g_other_live{0};
+// g_other_live when the peak was last reset. Other threads allocate outside the arena, so
+// in the arena they only free (their live only falls): this is their peak since the reset.
+std::atomic<long long> g_other_live_at_reset{0};
 
 // The calling thread's heap in the arena and its counters, or null when the thread has no
 // budget. Trivially constructed thread_locals: reading them allocates nothing.
@@ -161,7 +164,8 @@ std::string ReserveMemoryBudget(std::size_t bytes) {
 
 MemoryBudgetStats GetMemoryBudgetStats() {
   MemoryBudgetStats s;
-  long long live = g_other_live.load(), peaks = 0;
+  long long live = g_other_live.load();
+  long long peaks = std::max(live, g_other_live_at_reset.load());
   const int n = std::min(g_num_threads.load(), kMaxBudgetThreads);
   for (int i = 0; i < n; ++i) {
     s.arena_allocations += g_threads[i].arena.load();
@@ -183,6 +187,7 @@ void ResetMemoryBudgetPeak() {
   // value: the sum stays an upper bound.
   const int n = std::min(g_num_threads.load(), kMaxBudgetThreads);
   for (int i = 0; i < n; ++i) g_threads[i].peak = g_threads[i].live.load();
+  g_other_live_at_reset = g_other_live.load();
 }
 
 MemoryBudgetScope::MemoryBudgetScope() {

@@ -110,6 +110,10 @@ TEST_F(MemoryBudgetTest, BlocksFreedOnAnotherThreadLeaveTheArena) {
   EXPECT_GE(GetMemoryBudgetStats().arena_live_bytes, live_before + 100 * 80000);
   blocks.clear();
   EXPECT_EQ(GetMemoryBudgetStats().arena_live_bytes, live_before);
+  // The peak counts the frees of threads without a budget too: it does not creep up.
+  ResetMemoryBudgetPeak();
+  const MemoryBudgetStats after = GetMemoryBudgetStats();
+  EXPECT_EQ(after.arena_peak_bytes, after.arena_live_bytes);
 }
 
 // Past the budget, allocations still succeed, from the ordinary heap, and are counted: the
