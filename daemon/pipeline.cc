@@ -348,10 +348,18 @@ std::string Pipeline::StatusLine() const {
 }
 
 std::string Pipeline::StatusLineLocked() const {
-  char line[160];
-  std::snprintf(line, sizeof(line), "%s; jobs %ld sent, %ld refused; last %s: %s",
+  // The memory budget, for operators (lcm-spy, systemctl status): heap allocations above 0
+  // mean memory.arena_mib is too small.
+  const MemoryBudgetStats memory = GetMemoryBudgetStats();
+  char budget[96] = "";
+  if (memory.arena_bytes > 0)
+    std::snprintf(budget, sizeof(budget), "; memory %.0f of %zu MiB, %ld from the heap",
+                  static_cast<double>(memory.arena_live_bytes) / (1 << 20),
+                  memory.arena_bytes >> 20, memory.heap_allocations);
+  char line[320];
+  std::snprintf(line, sizeof(line), "%s; jobs %ld sent, %ld refused%s; last %s: %s",
                 busy_.load() ? "morphing" : "waiting for a carcass", jobs_done_, jobs_failed_,
-                last_.carcass_id.empty() ? "-" : last_.carcass_id.c_str(),
+                budget, last_.carcass_id.empty() ? "-" : last_.carcass_id.c_str(),
                 last_.status.empty() ? "-" : last_.status.c_str());
   return line;
 }

@@ -60,7 +60,12 @@ sleep 0.5
 for want in "READY=1" "STATUS=serving" "WATCHDOG=1" "STOPPING=1"; do
   grep -q "$want" "$work/notify.log" || { echo "FAIL: no $want"; cat "$work/notify.log"; exit 1; }
 done
-echo "ok: READY=1, STATUS=, WATCHDOG=1 and STOPPING=1 over NOTIFY_SOCKET"
+# The status shows the memory budget (not in sanitizer builds, which have none).
+if ! grep -q "no memory budget in this build" "$work/daemon.log"; then
+  grep -q "STATUS=serving.*; memory [0-9]* of 512 MiB, 0 from the heap;" "$work/notify.log" ||
+    { echo "FAIL: no memory budget in STATUS="; cat "$work/notify.log"; exit 1; }
+fi
+echo "ok: READY=1, STATUS= (with the memory budget), WATCHDOG=1 and STOPPING=1 over NOTIFY_SOCKET"
 
 # A bad configuration: non-zero exit before READY, the file and key named.
 sed 's/^version: 1/version: 7/' "$work/vbd.yaml" >"$work/bad.yaml"
