@@ -68,14 +68,15 @@ void AddLive(long long bytes) {
   }
 }
 
-// Counts a new block and where it landed.
-void* Account(void* p, bool budget_thread) {
+// Counts a new block and where it landed. A thread with counters is a budget thread, so a
+// block of its that is outside the arena came from the heap.
+void* Account(void* p) {
   if (p == nullptr) return p;
   ThreadCounters* c = t_counters;
   if (InArena(p)) {
     if (c != nullptr) Bump(c->arena);
     AddLive(static_cast<long long>(mi_usable_size(p)));
-  } else if (budget_thread && c != nullptr) {
+  } else if (c != nullptr) {
     Bump(c->heap);
   } else {
     g_other_allocations.fetch_add(1, std::memory_order_relaxed);
@@ -87,31 +88,31 @@ void Release(void* p) {
   if (p != nullptr && InArena(p)) AddLive(-static_cast<long long>(mi_usable_size(p)));
 }
 
-void* AllocateIn(mi_heap_t* heap, std::size_t n, std::size_t alignment) {
-  return alignment == 0 ? mi_heap_malloc(heap, n) : mi_heap_malloc_aligned(heap, n, alignment);
+// A budget thread's allocation: from its heap in the arena, or, should the arena be full,
+// from its ordinary heap (counted by Account, never a failure). @p allocate(heap) makes it.
+template <typename AllocateInHeap>
+void* AllocateWithFallback(mi_heap_t* heap, AllocateInHeap allocate) {
+  const int saved_errno = errno;
+  void* p = allocate(heap);
+  if (p == nullptr) p = allocate(mi_heap_get_backing());
+  if (p != nullptr) errno = saved_errno;
+  return Account(p);
 }
 
-// malloc (alignment 0) and its aligned relatives. A budget thread whose arena is full falls
-// back to its ordinary heap: counted, never a failure.
+// malloc (alignment 0) and its aligned relatives.
 void* Allocate(std::size_t n, std::size_t alignment) {
-  mi_heap_t* heap = t_heap;
-  if (heap == nullptr)  // mimalloc's own entry points, which also set up a new thread
-    return Account(alignment == 0 ? mi_malloc(n) : mi_malloc_aligned(n, alignment), false);
-  const int saved_errno = errno;
-  void* p = AllocateIn(heap, n, alignment);
-  if (p == nullptr) p = AllocateIn(mi_heap_get_backing(), n, alignment);
-  if (p != nullptr) errno = saved_errno;
-  return Account(p, true);
+  if (mi_heap_t* heap = t_heap)
+    return AllocateWithFallback(heap, [&](mi_heap_t* h) {
+      return alignment == 0 ? mi_heap_malloc(h, n) : mi_heap_malloc_aligned(h, n, alignment);
+    });
+  // mimalloc's own entry points, which also set up a new thread.
+  return Account(alignment == 0 ? mi_malloc(n) : mi_malloc_aligned(n, alignment));
 }
 
 void* AllocateZeroed(std::size_t count, std::size_t size) {
-  mi_heap_t* heap = t_heap;
-  if (heap == nullptr) return Account(mi_calloc(count, size), false);
-  const int saved_errno = errno;
-  void* p = mi_heap_calloc(heap, count, size);
-  if (p == nullptr) p = mi_heap_calloc(mi_heap_get_backing(), count, size);
-  if (p != nullptr) errno = saved_errno;
-  return Account(p, true);
+  if (mi_heap_t* heap = t_heap)
+    return AllocateWithFallback(heap, [&](mi_heap_t* h) { return mi_heap_calloc(h, count, size); });
+  return Account(mi_calloc(count, size));
 }
 
 void* Reallocate(void* p, std::size_t n) {
@@ -125,7 +126,7 @@ void* Reallocate(void* p, std::size_t n) {
   if (q == nullptr) return nullptr;  // p is untouched, as realloc promises
   errno = saved_errno;
   if (old_in_arena) AddLive(-static_cast<long long>(old_size));
-  if (q != p) return Account(q, heap != nullptr);
+  if (q != p) return Account(q);
   if (old_in_arena) AddLive(static_cast<long long>(mi_usable_size(q)));  // grown in place
   return q;
 }
@@ -146,8 +147,8 @@ bool MemoryBudgetAvailable() { return true; }
 std::string ReserveMemoryBudget(std::size_t bytes) {
   if (g_arena_id.load() >= 0) return "the memory budget's arena is already reserved";
   mi_arena_id_t id = 0;
-  // Committed (read-write, no decommit), not huge pages, and exclusive: only the heaps made
-  // for it allocate there.
+  // Committed (read-write), not huge pages, and exclusive: only the heaps made for it
+  // allocate there.
   const int err = mi_reserve_os_memory_ex(bytes, true, false, true, &id);
   if (err != 0) {
     char why[128];
