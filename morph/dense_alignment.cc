@@ -61,13 +61,22 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   for (int i = 0; i < model.V.cols(); i += step) samples.push_back(i);
 
   // Each target point's plane passes through the (corrected) centroid of its neighbours,
-  // which averages the sensor noise along the normal away. The spread of the points about
-  // their local planes gives the noise, and the data term is weighted down as it grows (a
-  // maximum-likelihood weighting).
-  double noise = 0.0;
-  const Eigen::Matrix3Xd centroids = PlanePoints(points, normals, index, options.surface_neighbours,
-                                                 options.correct_plane_offset, &noise);
+  // which averages the sensor noise along the normal away; noisier targets average more. The
+  // data term is weighted down as the noise grows (a maximum-likelihood weighting).
+  phase = std::chrono::steady_clock::now();
+  const double noise = EstimateNoise(points, index, options.noise_samples, options.noise_neighbours,
+                                     options.noise_radius);
+  result.noise_seconds = Since(phase);
+  const double relative_surface_noise = noise / options.surface_noise;
   result.noise = noise;
+  const int fewest = options.surface_neighbours;
+  const int most = std::max(fewest, options.max_surface_neighbours);
+  result.surface_neighbours = static_cast<int>(
+      std::lround(std::clamp(fewest * relative_surface_noise * relative_surface_noise,
+                             static_cast<double>(fewest), static_cast<double>(most))));
+  const Eigen::Matrix3Xd centroids =
+      PlanePoints(points, normals, index, result.surface_neighbours, options.surface_radius,
+                  options.correct_plane_offset);
   const double relative_noise = noise / options.noise_reference;
   const double noise_factor = 1.0 / (1.0 + relative_noise * relative_noise);
   result.state = coarse.state;

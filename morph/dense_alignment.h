@@ -21,15 +21,31 @@ struct DenseOptions {
   /// Each associated target point is replaced by the centroid of this many nearest target
   /// points, which averages sensor noise along the normal (measured at sigma 16 mm: mean
   /// error 21 -> 17 mm); few, so curved limbs are not flattened (24 cost 0.02 in volume
-  /// RMSE at sigma 0).
+  /// RMSE at sigma 0). This is the count for targets no noisier than surface_noise.
   int surface_neighbours = 10;
-  /// Noise level at which the data weight halves. The noise is estimated from the target
-  /// itself (1.4826 x the median offset of its points from their neighbours' centroid along
-  /// the normal; it reads about half the true sigma, since the local plane absorbs some), and
-  /// the data term is weighted by 1 / (1 + (noise / noise_reference)^2). Measured on 6 lamb
-  /// targets: cut-plane distance at sigma 4 mm 6.8 -> 4.5 mm, at sigma 16 11.5 -> 10.0 mm,
-  /// unchanged at sigma 0.
-  double noise_reference = 0.002;
+  /// Noisier targets average more points, surface_neighbours x (noise / surface_noise)^2,
+  /// so that their plane points keep the noise of a target at surface_noise, up to
+  /// max_surface_neighbours (past that, limbs flatten). Measured on 10 lamb targets, with
+  /// the noise estimate below: cut-plane distance at sigma 8 / 16 mm 3.22 / 4.02 -> 3.02 /
+  /// 3.78 mm (meshes) and 5.87 / 11.47 -> 5.59 / 11.29 mm (clouds with missing regions),
+  /// unchanged at sigma <= 4.
+  double surface_noise = 0.0035;
+  int max_surface_neighbours = 32;
+  /// Plane points average no farther than this (coarse meshes: a few thousand vertices).
+  double surface_radius = 0.03;
+  /// The noise estimate (EstimateNoise): about noise_samples target points, each against a
+  /// quadratic fitted to its noise_neighbours nearest within noise_radius.
+  int noise_samples = 1000;
+  int noise_neighbours = 60;
+  double noise_radius = 0.03;
+  /// Noise level at which the data weight halves: the data term is weighted by
+  /// 1 / (1 + (noise / noise_reference)^2), a maximum-likelihood weighting. Measured on 6
+  /// lamb targets: cut-plane distance at sigma 4 mm 6.8 -> 4.5 mm, at sigma 16 11.5 -> 10.0
+  /// mm, unchanged at sigma 0. With the noise estimate that reads the true sigma (it read a
+  /// third of it at sigma 16 mm before), on 10 lamb targets: sigma 16 mm meshes 4.33 -> 4.02
+  /// mm, clouds with missing regions at sigma 8 / 16 mm 8.04 / 14.72 -> 5.87 / 11.47 mm,
+  /// unchanged at sigma <= 4.
+  double noise_reference = 0.0026;
   /// Each plane point (the centroid above) is moved along the normal by the mean offset of its
   /// neighbours' points from their own centroids. A centroid lies inside a convex surface by
   /// about the curvature times the neighbourhood's squared radius; on a tapered body that
@@ -88,8 +104,10 @@ struct DenseResult {
   DeformationState state;           ///< normalised template frame
   Eigen::Matrix3Xd target_normals;  ///< unit, target frame; given or estimated
   std::vector<DenseRound> rounds;
-  double noise = 0.0;  ///< estimated sensor noise (standard deviation), template sizes
+  double noise = 0.0;          ///< estimated sensor noise (standard deviation), template sizes
+  int surface_neighbours = 0;  ///< target points averaged per plane point, from the noise
   double normals_seconds = 0.0;
+  double noise_seconds = 0.0;
   double total_seconds = 0.0;
 };
 

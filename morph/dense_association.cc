@@ -1,6 +1,7 @@
 #include "morph/dense_association.h"
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
@@ -37,10 +38,70 @@ Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointInde
   return normals;
 }
 
+namespace {
+
+// Fewest neighbours a noise sample is fitted to: twice the quadratic's six coefficients.
+constexpr Eigen::Index kMinNoiseNeighbours = 12;
+
+}  // namespace
+
+double EstimateNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, int samples, int k,
+                     double radius) {
+  VB_DEMAND(samples >= 1 && k >= 10 && radius > 0 && index.size() == points.cols());
+  if (points.cols() <= k) return 0.0;
+  const Eigen::Index step = std::max<Eigen::Index>(1, points.cols() / samples);
+  std::vector<int> found;
+  std::vector<double> distances;
+  std::vector<double> residuals;
+  residuals.reserve(static_cast<std::size_t>(points.cols() / step + 1));
+  Eigen::MatrixXd A(k, 6);
+  Eigen::VectorXd height(k);
+  // Height above the neighbours' principal plane, as a quadratic in the in-plane coordinates.
+  const auto monomials = [](const Eigen::Vector3d& q) {
+    return (Eigen::Matrix<double, 1, 6>() << q.y() * q.y(), q.y() * q.z(), q.z() * q.z(), q.y(),
+            q.z(), 1.0)
+        .finished();
+  };
+  for (Eigen::Index i = 0; i < points.cols(); i += step) {
+    index.Nearest(points.col(i), k + 1, &found, &distances);
+    // Leave the point out of its own fit, or the fit takes up part of its noise; and the
+    // points beyond the radius, where a quadratic no longer follows a coarse surface.
+    std::size_t kept = 0;
+    for (std::size_t m = 0; m < found.size() && kept < static_cast<std::size_t>(k); ++m)
+      if (found[m] != static_cast<int>(i) && distances[m] <= radius * radius)
+        found[kept++] = found[m];
+    found.resize(kept);
+    const auto n = static_cast<Eigen::Index>(found.size());
+    if (n < kMinNoiseNeighbours) continue;
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (int j : found) mean += points.col(j);
+    mean /= static_cast<double>(n);
+    Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+    for (int j : found) scatter += (points.col(j) - mean) * (points.col(j) - mean).transpose();
+    // Columns: normal (least spread) first, then the two in-plane axes.
+    const Eigen::Matrix3d axes =
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvectors();
+    for (Eigen::Index r = 0; r < n; ++r) {
+      const Eigen::Vector3d q =
+          axes.transpose() * (points.col(found[static_cast<std::size_t>(r)]) - mean);
+      A.row(r) = monomials(q);
+      height[r] = q.x();
+    }
+    const Eigen::VectorXd c = A.topRows(n).colPivHouseholderQr().solve(height.head(n));
+    const Eigen::Vector3d q = axes.transpose() * (points.col(i) - mean);
+    residuals.push_back(std::abs(q.x() - monomials(q).dot(c)));
+  }
+  if (residuals.empty()) return 0.0;
+  const auto middle = residuals.begin() + static_cast<std::ptrdiff_t>(residuals.size() / 2);
+  std::nth_element(residuals.begin(), middle, residuals.end());
+  return 1.4826 * *middle;
+}
+
 Eigen::Matrix3Xd PlanePoints(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
-                             const PointIndex& index, int k, bool correct_curvature,
-                             double* noise) {
-  VB_DEMAND(k >= 1 && normals.cols() == points.cols() && index.size() == points.cols());
+                             const PointIndex& index, int k, double radius,
+                             bool correct_curvature) {
+  VB_DEMAND(k >= 1 && radius > 0 && normals.cols() == points.cols() &&
+            index.size() == points.cols());
   Eigen::Matrix3Xd centroids(3, points.cols());
   // Each point's neighbours, kept for the correction only: k per point, -1 where fewer exist.
   Eigen::MatrixXi neighbours;
@@ -49,25 +110,19 @@ Eigen::Matrix3Xd PlanePoints(const Eigen::Matrix3Xd& points, const Eigen::Matrix
   std::vector<double> distances;
   for (Eigen::Index i = 0; i < points.cols(); ++i) {
     index.Nearest(points.col(i), k, &found, &distances);
+    // The nearest (the point itself) always counts; the rest only within the radius.
+    std::size_t kept = std::min<std::size_t>(1, found.size());
+    while (kept < found.size() && distances[kept] <= radius * radius) ++kept;
+    found.resize(kept);
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     for (int j : found) sum += points.col(j);
     centroids.col(i) = sum / static_cast<double>(found.size());
     if (correct_curvature) std::copy(found.begin(), found.end(), neighbours.col(i).data());
   }
-  Eigen::VectorXd offsets(points.cols());
-  for (Eigen::Index i = 0; i < points.cols(); ++i)
-    offsets[i] = normals.col(i).dot(points.col(i) - centroids.col(i));
-  if (noise != nullptr) {
-    *noise = 0.0;
-    if (points.cols() > 0) {
-      const Eigen::VectorXd absolute = offsets.cwiseAbs();
-      std::vector<double> magnitudes(absolute.data(), absolute.data() + absolute.size());
-      const auto middle = magnitudes.begin() + static_cast<std::ptrdiff_t>(magnitudes.size() / 2);
-      std::nth_element(magnitudes.begin(), middle, magnitudes.end());
-      *noise = 1.4826 * *middle;
-    }
-  }
   if (correct_curvature) {
+    Eigen::VectorXd offsets(points.cols());
+    for (Eigen::Index i = 0; i < points.cols(); ++i)
+      offsets[i] = normals.col(i).dot(points.col(i) - centroids.col(i));
     for (Eigen::Index i = 0; i < points.cols(); ++i) {
       double sum = 0.0;
       int count = 0;

@@ -47,18 +47,29 @@ DenseAssociation AssociateDense(const Eigen::Matrix3Xd& source,
                                 const DenseAssociationOptions& options = {});
 
 /// A point on each target point's local plane for eq. (14): the centroid of its @p k nearest
-/// points (which averages sensor noise along the normal away), and, if @p correct_curvature,
+/// points within @p radius (which averages sensor noise along the normal away, over a patch
+/// no wider than the radius, so coarser features survive), and, if @p correct_curvature,
 /// moved along the point's normal by the mean offset of those neighbours' points from their
 /// own centroids. A centroid on a convex patch lies inside the surface by about the curvature
 /// times the squared radius of the neighbourhood, nearly the same at neighbouring points;
 /// adding that back removes the bias and keeps the averaging.
 /// @param[in] points, normals 3 by N (unit normals); @p index over @p points; k >= 1.
-/// @param[out] noise if not null, 1.4826 x the median offset of the points from their
-///   (uncorrected) centroids along the normal: a robust estimate of the noise's standard
-///   deviation that also reads some curvature.
 Eigen::Matrix3Xd PlanePoints(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
-                             const PointIndex& index, int k, bool correct_curvature,
-                             double* noise = nullptr);
+                             const PointIndex& index, int k, double radius, bool correct_curvature);
+
+/// The standard deviation of a cloud's noise along its surface, from the cloud alone. At
+/// every n-th point (about @p samples of them) a quadratic height field is fitted to the
+/// point's @p k nearest neighbours within @p radius, in their principal frame and without
+/// the point itself; the estimate is 1.4826 x the median of the points' offsets from their
+/// fits. Points with fewer than 12 neighbours in reach are skipped. The quadratic
+/// takes out the curvature that a plane reads as noise, leaving the point out keeps the fit
+/// from absorbing its noise, and a wide neighbourhood keeps the neighbours from being picked
+/// by the noise itself (the k nearest of a point pushed out are those pushed out with it).
+/// The radius keeps a coarse surface (a mesh of a few thousand vertices) from reading its
+/// shape as noise. Returns 0 when no point has enough neighbours.
+/// @pre samples >= 1, k >= 10, radius > 0, @p index over @p points.
+double EstimateNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, int samples, int k,
+                     double radius);
 
 struct AssociationFilterOptions {
   int neighbours = 8;  ///< k of the graph on the template's associated points

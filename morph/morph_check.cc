@@ -21,7 +21,8 @@ MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
   const double size = coarse.association.from_to.scale;
   if (target.cols() > 0 && dense.mesh.V.cols() > 0) {
     const PointIndex index(dense.mesh.V);
-    const double limit = options.explained_distance * size + 3.0 * dense.noise * size;
+    const double limit =
+        (options.explained_distance + options.noise_allowance * dense.noise) * size;
     long far = 0;
     for (Eigen::Index i = 0; i < target.cols(); ++i)
       if ((dense.mesh.V.col(index.Nearest(target.col(i))) - target.col(i)).norm() > limit) ++far;

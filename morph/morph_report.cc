@@ -88,7 +88,9 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
     j["dense"] = {{"ok", dense->ok},
                   {"error", dense->error},
                   {"estimated_noise_rel", dense->noise},
+                  {"surface_neighbours", dense->surface_neighbours},
                   {"normals_s", dense->normals_seconds},
+                  {"noise_s", dense->noise_seconds},
                   {"total_s", dense->total_seconds},
                   {"rounds", rounds}};
     j["timings_s"]["dense_total"] = dense->total_seconds;
