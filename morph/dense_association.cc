@@ -48,7 +48,6 @@ constexpr Eigen::Index kMinNoiseNeighbours = 12;
 double EstimateNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, int samples, int k,
                      double radius) {
   VB_DEMAND(samples >= 1 && k >= 10 && radius > 0 && index.size() == points.cols());
-  if (points.cols() <= k) return 0.0;
   const Eigen::Index step = std::max<Eigen::Index>(1, points.cols() / samples);
   std::vector<int> found;
   std::vector<double> distances;

@@ -108,6 +108,16 @@ TEST(EstimateNoiseTest, ReadsTheTrueSigmaFromCleanToNoiseAsLargeAsTheSpacing) {
   }
 }
 
+TEST(EstimateNoiseTest, ReadsZeroWhenNoPointHasEnoughNeighbours) {
+  const Eigen::Matrix3Xd few = SpherePoints(8, 9);
+  EXPECT_EQ(EstimateNoise(few, PointIndex(few), 1000, 60, 10.0), 0.0);
+  // Enough points, but none within the radius of another.
+  const Eigen::Matrix3Xd spread = SpherePoints(200, 10);
+  EXPECT_EQ(EstimateNoise(spread, PointIndex(spread), 1000, 60, 1e-3), 0.0);
+  const Eigen::Matrix3Xd empty(3, 0);
+  EXPECT_EQ(EstimateNoise(empty, PointIndex(empty), 1000, 60, 1.0), 0.0);
+}
+
 TEST(AssociateDenseTest, PrefersTheSurfaceFacingTheSameWay) {
   // Two parallel sheets 1 cm apart facing away from each other, as the two sides of a thin
   // limb. A point on the lower sheet, facing down, is slightly nearer the upper sheet.
