@@ -12,6 +12,32 @@
 
 namespace vb::morph {
 
+namespace {
+
+// Fewest neighbours a noise sample is fitted to: twice the quadratic's six coefficients.
+constexpr Eigen::Index kMinNoiseNeighbours = 12;
+
+// Centroid and principal axes of the points at @p indices; the axes are columns ordered by
+// ascending spread, so the first is the normal of their best-fit plane.
+struct PrincipalFrame {
+  Eigen::Vector3d mean;
+  Eigen::Matrix3d axes;
+};
+
+PrincipalFrame FitPrincipalFrame(const Eigen::Matrix3Xd& points, const std::vector<int>& indices) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (int j : indices) mean += points.col(j);
+  mean /= static_cast<double>(indices.size());
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (int j : indices) {
+    const Eigen::Vector3d d = points.col(j) - mean;
+    scatter += d * d.transpose();
+  }
+  return {mean, Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvectors()};
+}
+
+}  // namespace
+
 Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointIndex& index, int k,
                                  const Eigen::Matrix3Xd& reference,
                                  const Eigen::Matrix3Xd& reference_normals) {
@@ -22,28 +48,12 @@ Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointInde
   std::vector<double> distances;
   for (Eigen::Index i = 0; i < points.cols(); ++i) {
     index.Nearest(points.col(i), k, &found, &distances);
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (int j : found) mean += points.col(j);
-    mean /= static_cast<double>(found.size());
-    Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
-    for (int j : found) {
-      const Eigen::Vector3d d = points.col(j) - mean;
-      scatter += d * d.transpose();
-    }
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);
-    Eigen::Vector3d n = solver.eigenvectors().col(0);  // eigenvalues ascend
+    Eigen::Vector3d n = FitPrincipalFrame(points, found).axes.col(0);
     if (n.dot(reference_normals.col(reference_index.Nearest(points.col(i)))) < 0) n = -n;
     normals.col(i) = n;
   }
   return normals;
 }
-
-namespace {
-
-// Fewest neighbours a noise sample is fitted to: twice the quadratic's six coefficients.
-constexpr Eigen::Index kMinNoiseNeighbours = 12;
-
-}  // namespace
 
 double EstimateNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, int samples, int k,
                      double radius) {
@@ -72,22 +82,15 @@ double EstimateNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, in
     found.resize(kept);
     const auto n = static_cast<Eigen::Index>(found.size());
     if (n < kMinNoiseNeighbours) continue;
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (int j : found) mean += points.col(j);
-    mean /= static_cast<double>(n);
-    Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
-    for (int j : found) scatter += (points.col(j) - mean) * (points.col(j) - mean).transpose();
-    // Columns: normal (least spread) first, then the two in-plane axes.
-    const Eigen::Matrix3d axes =
-        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvectors();
+    const PrincipalFrame frame = FitPrincipalFrame(points, found);
     for (Eigen::Index r = 0; r < n; ++r) {
       const Eigen::Vector3d q =
-          axes.transpose() * (points.col(found[static_cast<std::size_t>(r)]) - mean);
+          frame.axes.transpose() * (points.col(found[static_cast<std::size_t>(r)]) - frame.mean);
       A.row(r) = monomials(q);
       height[r] = q.x();
     }
     const Eigen::VectorXd c = A.topRows(n).colPivHouseholderQr().solve(height.head(n));
-    const Eigen::Vector3d q = axes.transpose() * (points.col(i) - mean);
+    const Eigen::Vector3d q = frame.axes.transpose() * (points.col(i) - frame.mean);
     residuals.push_back(std::abs(q.x() - monomials(q).dot(c)));
   }
   if (residuals.empty()) return 0.0;
