@@ -2,16 +2,24 @@
 
 #include <chrono>
 #include <exception>
+#include <utility>
 
 namespace vb::morph {
+namespace {
 
-CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& annotations,
-                           const Eigen::Matrix3Xd& target, const Eigen::Matrix3Xd& normals,
-                           const MorphOptions& options) {
+double Since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+CarcassResult MorphFromCoarse(const TemplateModel& model, const io::Annotations& annotations,
+                              CoarseResult coarse, const Eigen::Matrix3Xd& target,
+                              const Eigen::Matrix3Xd& normals, const MorphOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   CarcassResult r;
+  r.coarse = std::move(coarse);
   try {
-    r.coarse = AlignCoarse(model, target, options.coarse);
     if (!r.coarse.ok) {
       r.error = "coarse stage: " + r.coarse.error;
     } else {
@@ -25,8 +33,7 @@ CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& an
                               r.coarse.template_to_target.scale, options.cuts);
         for (TransferredCut& cut : r.cuts) cut.confidence *= r.check.confidence;
         if (!r.cuts.empty()) r.parts = CutParts(r.dense.mesh, r.cuts);
-        r.cuts_seconds =
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - phase).count();
+        r.cuts_seconds = Since(phase);
         r.ok = true;
       }
     }
@@ -34,7 +41,25 @@ CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& an
     r.ok = false;
     r.error = e.what();
   }
-  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  r.seconds = Since(start);
+  return r;
+}
+
+CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& annotations,
+                           const Eigen::Matrix3Xd& target, const Eigen::Matrix3Xd& normals,
+                           const MorphOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  CoarseResult coarse;
+  try {
+    coarse = AlignCoarse(model, target, options.coarse);
+  } catch (const std::exception& e) {  // a bad target is a result, not a crash
+    CarcassResult r;
+    r.error = e.what();
+    r.seconds = Since(start);
+    return r;
+  }
+  CarcassResult r = MorphFromCoarse(model, annotations, std::move(coarse), target, normals, options);
+  r.seconds = Since(start);
   return r;
 }
 

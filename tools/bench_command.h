@@ -23,7 +23,10 @@ struct BenchOptions {
   double min_confidence = 0.6;  ///< full stage: a job is sent when every cut reaches this
   int dense_rounds =
       morph::DenseOptions{}.rounds;  ///< full stage: association -> filter -> deformation rounds
-  std::filesystem::path csv;         ///< default bench_<stage>.csv
+  /// Full stage: start the dense stage from the ground truth instead of the coarse stage's
+  /// result, to measure how far the dense stage's own energy moves the cut lines.
+  bool start_from_truth = false;
+  std::filesystem::path csv;  ///< default bench_<stage>.csv
 };
 
 /// `vbutcher bench coarse`: morphs synthetic targets with known correspondence and prints a

@@ -42,6 +42,8 @@ struct FullRow {
   // morph: what a perfect morph would give (the cut lines are not quite planar, and the
   // transfer moves them onto the noisy target).
   std::vector<double> cut_floor_mm;
+  // With --start-from-truth: the cut-plane distance of the starting state itself.
+  std::vector<double> cut_start_mm;
   double coarse_s = 0, normals_s = 0, dense_s = 0, cuts_s = 0, total_s = 0;
   // How well the morph fits, as the pipeline sees it (no ground truth): last dense round.
   double kept_fraction = 0, plane_distance_rel = 0, final_cost = 0;
@@ -71,12 +73,52 @@ struct Example {
   std::vector<morph::TransferredCut> cuts;
 };
 
+// The coarse stage's placement (its similarity), then node transforms fitted point to point
+// to the true position of every template vertex, with the dense stage's regularisers: a right
+// answer the deformation graph can hold, for the dense stage to start from.
+morph::CoarseResult CoarseFromTruth(const morph::TemplateModel& model,
+                                    const Eigen::Matrix3Xd& points,
+                                    const Eigen::Matrix3Xd& true_vertices,
+                                    const morph::MorphOptions& options) {
+  morph::CoarseResult coarse = morph::AlignCoarse(model, points, options.coarse);
+  if (!coarse.ok) return coarse;
+  const morph::Similarity to_target = coarse.association.from_to;
+  const morph::Similarity to_template = to_target.Inverse();
+  std::vector<morph::PointConstraint> constraints(static_cast<std::size_t>(model.V.cols()));
+  for (Eigen::Index i = 0; i < model.V.cols(); ++i) {
+    morph::PointConstraint& c = constraints[static_cast<std::size_t>(i)];
+    c.rest = model.V.col(i);
+    c.target = to_template(true_vertices.col(i));
+    for (Eigen::Index n = 0; n < model.vertex_weights.nodes.rows(); ++n) {
+      if (model.vertex_weights.nodes(n, i) < 0) continue;
+      c.nodes.push_back(model.vertex_weights.nodes(n, i));
+      c.weights.push_back(model.vertex_weights.weights(n, i));
+    }
+  }
+  morph::EmbeddedDeformationOptions fit = options.dense.deformation;
+  fit.w_data *= static_cast<double>(model.graph.num_nodes()) /
+                static_cast<double>(constraints.size());  // as the dense stage balances it
+  fit.max_iterations = 100;
+  fit.linear_solver = morph::EmbeddedDeformationOptions::LinearSolver::kSparseNormalCholesky;
+  coarse.deformation = morph::SolveEmbeddedDeformation(model.graph, constraints, fit, &coarse.state);
+  const Eigen::Matrix3Xd posed =
+      morph::DeformPoints(model.graph, model.vertex_weights, model.V, coarse.state);
+  for (Eigen::Index i = 0; i < posed.cols(); ++i) coarse.mesh.V.col(i) = to_target(posed.col(i));
+  coarse.mesh.N = io::VertexNormals(coarse.mesh);
+  return coarse;
+}
+
 FullRow Evaluate(const morph::TemplateModel& model, const io::Annotations& annotations,
                  const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
                  const perception::PosedCarcass& truth, const morph::MorphOptions& options,
-                 Example* example) {
+                 bool start_from_truth, Example* example) {
   FullRow row;
-  const morph::CarcassResult r = morph::MorphCarcass(model, annotations, points, normals, options);
+  const morph::CarcassResult r =
+      start_from_truth
+          ? morph::MorphFromCoarse(model, annotations,
+                                   CoarseFromTruth(model, points, truth.mesh.V, options), points,
+                                   normals, options)
+          : morph::MorphCarcass(model, annotations, points, normals, options);
   const morph::CoarseResult& coarse = r.coarse;
   const morph::DenseResult& dense = r.dense;
   row.coarse_s = coarse.total_seconds;
@@ -129,6 +171,13 @@ FullRow Evaluate(const morph::TemplateModel& model, const io::Annotations& annot
                           coarse.template_to_target.scale, options.cuts);
   for (std::size_t c = 0; c < floor_cuts.size(); ++c)
     row.cut_floor_mm.push_back(mean_distance_mm(floor_cuts[c].plane, c));
+  if (start_from_truth) {
+    const std::vector<morph::TransferredCut> start_cuts =
+        morph::TransferCuts(annotations, model.mesh, coarse.mesh, points, dense.target_normals,
+                            coarse.template_to_target.scale, options.cuts);
+    for (std::size_t c = 0; c < start_cuts.size(); ++c)
+      row.cut_start_mm.push_back(mean_distance_mm(start_cuts[c].plane, c));
+  }
   for (std::size_t c = 0; c < cuts.size(); ++c) {
     const io::Plane& truth_plane = truth.cut_planes[c];
     const double cosine = std::clamp(cuts[c].plane.normal.dot(truth_plane.normal), -1.0, 1.0);
@@ -191,7 +240,7 @@ int RunFullBench(const BenchOptions& options) {
         }
         const bool want_example = !have_example && std::string(input) == "cloud";
         FullRow row = Evaluate(model, carcass.annotations, points, normals, truth, morph_options,
-                               want_example ? &example : nullptr);
+                               options.start_from_truth, want_example ? &example : nullptr);
         have_example = have_example || (want_example && row.ok);
         row.input = input;
         row.sigma_mm = sigma;
@@ -229,7 +278,8 @@ int RunFullBench(const BenchOptions& options) {
       }
       fusion.Fuse(views, &cloud);
       FullRow row = Evaluate(model, carcass.annotations, cloud.points.leftCols(cloud.size),
-                             cloud.normals.leftCols(cloud.size), truth, rig_options, nullptr);
+                             cloud.normals.leftCols(cloud.size), truth, rig_options,
+                             options.start_from_truth, nullptr);
       row.input = "rig";
       row.sigma_mm = -1;
       row.index = i;
@@ -290,9 +340,10 @@ int RunFullBench(const BenchOptions& options) {
          "cut dist, true morph mm | worst cut dist mm | confidence | median s | coarse s | "
          "dense s | sent | sent > 10 mm | refused <= 10 mm |\n"
          "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  std::ostringstream start_lines;
   for (const auto& [input, sigma] : groups) {
     std::vector<double> max_rel, max_mm, mean_mm, coarse_mm, volume, area, angle, distance, floor,
-        confidence, total, coarse_s, dense_s;
+        start, confidence, total, coarse_s, dense_s;
     int n = 0, ok = 0;
     // What a line would have done: a job is sent only when every cut reaches the daemon's
     // minimum confidence; a wrong job has a cut plane more than 10 mm off on average.
@@ -312,6 +363,7 @@ int RunFullBench(const BenchOptions& options) {
       angle.insert(angle.end(), r.cut_angle_deg.begin(), r.cut_angle_deg.end());
       distance.insert(distance.end(), r.cut_distance_mm.begin(), r.cut_distance_mm.end());
       floor.insert(floor.end(), r.cut_floor_mm.begin(), r.cut_floor_mm.end());
+      start.insert(start.end(), r.cut_start_mm.begin(), r.cut_start_mm.end());
       confidence.insert(confidence.end(), r.cut_confidence.begin(), r.cut_confidence.end());
       double job_worst = 0, job_confidence = 1;
       for (double d : r.cut_distance_mm) job_worst = std::max(job_worst, d);
@@ -334,6 +386,15 @@ int RunFullBench(const BenchOptions& options) {
                   worst, Mean(confidence), Median(total), Median(coarse_s), Median(dense_s), sent,
                   sent_wrong, refused_right);
     table << line;
+    if (options.start_from_truth) {
+      std::snprintf(line, sizeof line, "%s sigma %g: started from the truth at cut dist %.2f mm\n",
+                    input.c_str(), sigma, Mean(start));
+      start_lines << line;
+    }
+  }
+  if (options.start_from_truth) {
+    table << "\nstarted from the truth (--start-from-truth; coarse mean err is the start's):\n"
+          << start_lines.str();
   }
   if (!shape_rows.empty()) {
     table << "\n| shape | sigma (mm at 1.2 m) | n | ok | coarse mean err % | mean err % | avg max "

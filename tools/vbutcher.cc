@@ -126,6 +126,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0));
   bench_cmd->add_option("--dense-rounds", bench.dense_rounds, "Full stage: dense rounds")
       ->capture_default_str();
+  bench_cmd->add_flag("--start-from-truth", bench.start_from_truth,
+                      "Full stage: start the dense stage from node transforms fitted to the true "
+                      "surface (what the dense stage's own energy does to a right answer)");
   bench_cmd->add_option("--csv", bench.csv, "One row per morph (default bench_<stage>.csv)");
 
   vb::tools::VirtualRigCommandOptions virtual_rig;

@@ -59,6 +59,34 @@ TEST_F(MorphCheckTest, TrustsAGoodMorphAndDistrustsAnUpsideDownOne) {
   EXPECT_GE(wrong_morphs, 1) << "no wrong morph was made, so the check was not tested";
 }
 
+// MorphCarcass is AlignCoarse then MorphFromCoarse; the benchmark's --start-from-truth relies
+// on the second going on from whatever coarse result it is handed.
+TEST_F(MorphCheckTest, MorphFromCoarseGoesOnFromTheCoarseResultItIsGiven) {
+  perception::PosedCarcass truth;
+  const Eigen::Matrix3Xd cloud = HangingCloud(*carcass_, 2000003u, &truth);
+  MorphOptions options;
+  options.coarse.upright.enabled = true;
+  const CarcassResult whole = MorphCarcass(*model_, carcass_->annotations, cloud, {}, options);
+  const CarcassResult split =
+      MorphFromCoarse(*model_, carcass_->annotations, AlignCoarse(*model_, cloud, options.coarse),
+                      cloud, {}, options);
+  ASSERT_TRUE(whole.ok) << whole.error;
+  ASSERT_TRUE(split.ok) << split.error;
+  ASSERT_EQ(whole.cuts.size(), split.cuts.size());
+  for (std::size_t c = 0; c < whole.cuts.size(); ++c) {
+    EXPECT_LT((whole.cuts[c].plane.point - split.cuts[c].plane.point).norm(), 1e-6);
+    EXPECT_GT(whole.cuts[c].plane.normal.dot(split.cuts[c].plane.normal), 1.0 - 1e-9);
+  }
+
+  CoarseResult failed;
+  failed.error = "no skeleton";
+  const CarcassResult refused =
+      MorphFromCoarse(*model_, carcass_->annotations, failed, cloud, {}, options);
+  EXPECT_FALSE(refused.ok);
+  EXPECT_EQ(refused.error, "coarse stage: no skeleton");
+  EXPECT_TRUE(refused.cuts.empty());
+}
+
 TEST_F(MorphCheckTest, UprightPriorOnlyConsidersPlacementsWithinTheTilt) {
   perception::PosedCarcass truth;
   const Eigen::Matrix3Xd cloud = HangingCloud(*carcass_, 2000005u, &truth);
