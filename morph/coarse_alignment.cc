@@ -19,20 +19,6 @@ double Since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-// The data term of one template feature node, in the template's normalised frame.
-PointConstraint FeatureConstraint(const Eigen::Vector3d& rest, const Eigen::Vector3d& target,
-                                  const NodeWeights& w, int column) {
-  PointConstraint c;
-  c.rest = rest;
-  c.target = target;
-  for (Eigen::Index k = 0; k < w.nodes.rows(); ++k) {
-    if (w.nodes(k, column) < 0) continue;
-    c.nodes.push_back(w.nodes(k, column));
-    c.weights.push_back(w.weights(k, column));
-  }
-  return c;
-}
-
 // How badly the template, placed by `fit`, and the target disagree as surfaces: the mean of
 // closest-point distances both ways between a few hundred samples of each.
 double SurfaceDisagreement(const Eigen::Matrix3Xd& template_samples,
@@ -312,9 +298,9 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   phase = std::chrono::steady_clock::now();
   std::vector<PointConstraint> constraints;
   for (const auto& [i, j] : result.association.terminals) {
-    constraints.push_back(FeatureConstraint(model.features.terminals.col(i),
-                                            to_template(result.target_features.terminals.col(j)),
-                                            model.terminal_weights, i));
+    // The data term of one template feature node, in the template's normalised frame.
+    constraints.push_back(ConstrainPoint(model.terminal_weights, i, model.features.terminals.col(i),
+                                         to_template(result.target_features.terminals.col(j))));
   }
   result.state = DeformationState::Identity(model.graph.num_nodes());
   result.deformation =

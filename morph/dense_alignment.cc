@@ -88,16 +88,8 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   // Eq. (14) for template vertex i against target point j's plane.
   const auto plane_constraint = [&](int i, int j, DenseRound* info) {
     info->mean_plane_distance += std::abs(normals.col(j).dot(posed.V.col(i) - centroids.col(j)));
-    PointConstraint c;
-    c.rest = model.V.col(i);
-    c.target = centroids.col(j);
-    c.normal = normals.col(j);
-    for (Eigen::Index n = 0; n < model.vertex_weights.nodes.rows(); ++n) {
-      if (model.vertex_weights.nodes(n, i) < 0) continue;
-      c.nodes.push_back(model.vertex_weights.nodes(n, i));
-      c.weights.push_back(model.vertex_weights.weights(n, i));
-    }
-    return c;
+    return ConstrainPoint(model.vertex_weights, i, model.V.col(i), centroids.col(j),
+                          normals.col(j));
   };
   // Eq. (12) on pairs (template vertex, target point): which of them to keep.
   const auto filter = [&](const std::vector<int>& vertices, const std::vector<int>& targets) {

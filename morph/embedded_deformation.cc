@@ -140,6 +140,21 @@ DeformationState DeformationState::Identity(int num_nodes) {
   return s;
 }
 
+PointConstraint ConstrainPoint(const NodeWeights& weights, Eigen::Index column,
+                               const Eigen::Vector3d& rest, const Eigen::Vector3d& target,
+                               const Eigen::Vector3d& normal) {
+  PointConstraint c;
+  c.rest = rest;
+  c.target = target;
+  c.normal = normal;
+  for (Eigen::Index k = 0; k < weights.nodes.rows(); ++k) {
+    if (weights.nodes(k, column) < 0) continue;
+    c.nodes.push_back(weights.nodes(k, column));
+    c.weights.push_back(weights.weights(k, column));
+  }
+  return c;
+}
+
 Eigen::Matrix3d DeformationState::rotation(int j) const {
   return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(
       R[static_cast<std::size_t>(j)].data());

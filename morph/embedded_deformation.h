@@ -31,6 +31,12 @@ struct PointConstraint {
   std::vector<double> weights;
 };
 
+/// The constraint on point @p column of @p weights (its nodes and eq. 10 weights), moving
+/// @p rest onto @p target, or onto its plane when @p normal is not zero.
+PointConstraint ConstrainPoint(const NodeWeights& weights, Eigen::Index column,
+                               const Eigen::Vector3d& rest, const Eigen::Vector3d& target,
+                               const Eigen::Vector3d& normal = Eigen::Vector3d::Zero());
+
 /// Weights of eq. (4). Scale-free when positions are in units of the template's size.
 struct EmbeddedDeformationOptions {
   double w_data = 100.0;  ///< w_con or w_plane

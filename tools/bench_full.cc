@@ -84,16 +84,11 @@ morph::CoarseResult CoarseFromTruth(const morph::TemplateModel& model,
   if (!coarse.ok) return coarse;
   const morph::Similarity to_target = coarse.association.from_to;
   const morph::Similarity to_template = to_target.Inverse();
-  std::vector<morph::PointConstraint> constraints(static_cast<std::size_t>(model.V.cols()));
+  std::vector<morph::PointConstraint> constraints;
+  constraints.reserve(static_cast<std::size_t>(model.V.cols()));
   for (Eigen::Index i = 0; i < model.V.cols(); ++i) {
-    morph::PointConstraint& c = constraints[static_cast<std::size_t>(i)];
-    c.rest = model.V.col(i);
-    c.target = to_template(true_vertices.col(i));
-    for (Eigen::Index n = 0; n < model.vertex_weights.nodes.rows(); ++n) {
-      if (model.vertex_weights.nodes(n, i) < 0) continue;
-      c.nodes.push_back(model.vertex_weights.nodes(n, i));
-      c.weights.push_back(model.vertex_weights.weights(n, i));
-    }
+    constraints.push_back(morph::ConstrainPoint(model.vertex_weights, i, model.V.col(i),
+                                                to_template(true_vertices.col(i))));
   }
   morph::EmbeddedDeformationOptions fit = options.dense.deformation;
   fit.w_data *= static_cast<double>(model.graph.num_nodes()) /
