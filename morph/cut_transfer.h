@@ -25,6 +25,14 @@ struct CutTransferOptions {
   double gap_scale = 0.01;
   /// Width of the band beside a cut used to tell which side is which, for the normal.
   double side_band = 0.05;
+  /// Half-width of the band either side of a cut whose surface normals orient the plane
+  /// (see TransferredCut::plane); 0 orients it by the line's own plane fit alone.
+  double normal_band = 0.02;
+  /// Band normals count less as they lean towards the cut's normal, and not at all past
+  /// this cosine with it: there the body tapers, and a stretch along it turns them.
+  double normal_max_lean = 0.3;
+  /// Band vertices (within normal_max_lean) needed before their normals are used.
+  int min_band_vertices = 20;
 };
 
 /// One annotated cut carried onto a target.
@@ -33,9 +41,21 @@ struct TransferredCut {
   /// The cut line on the target's surface (target frame): each template line point moved
   /// by the morph, then onto the local target surface where the target was seen.
   std::vector<Eigen::Vector3d> line;
-  /// Best-fit plane of the line (least squares), normal towards the part before the cut.
+  /// The cutting plane, normal towards the part before the cut. It passes through the
+  /// line's centroid. Its normal is the expert's plane normal turned as the morph turned the
+  /// surface beside the cut: the rotation that best takes the template's vertex normals in
+  /// a band either side of the cut (those the saw meets nearly square on) onto the morphed
+  /// template's normals there. Where the surface does not say where along it a vertex
+  /// belongs (along a tube), the morph can slip the line and tilt the line's own plane fit;
+  /// the normals there do not change with the slip. Where the band holds too few vertices
+  /// or their normals fix no rotation (a flat patch), the normal is the line's
+  /// least-squares one.
   io::Plane plane;
-  double fit_rms = 0.0;   ///< RMS distance of the line to the plane, target units
+  /// True when plane.normal came from the band's normals, false from the line's plane fit.
+  bool oriented_by_normals = false;
+  /// RMS distance of the line to its own least-squares plane (how far from straight the
+  /// morph bent it), target units.
+  double fit_rms = 0.0;
   double coverage = 0.0;  ///< fraction of line points the target surface was seen at
   double gap = 0.0;       ///< mean distance from the morphed line to the target surface
   /// In [0, 1]: coverage, lowered as fit_rms and gap grow against their scales.
