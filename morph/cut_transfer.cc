@@ -1,13 +1,16 @@
 #include "morph/cut_transfer.h"
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 #include <Eigen/SVD>
+#include <algorithm>
 #include <cmath>
 #include <optional>
 
 #include "io/error.h"
 #include "io/mesh_measures.h"
 #include "io/surface_point.h"
+#include "morph/dense_association.h"
 #include "morph/point_index.h"
 
 namespace vb::morph {
@@ -102,6 +105,138 @@ std::optional<Eigen::Matrix3d> SurfaceTurn(const io::CutAnnotation& cut, const L
   return svd.matrixU() * d * svd.matrixV().transpose();
 }
 
+// How much the morph scaled the band near @p cut: the ratio of the morphed band vertices'
+// spread about their centroid to the template's.
+double BandScale(const io::CutAnnotation& cut, const LineExtent& extent,
+                 const io::TriangleMesh& rest, const io::TriangleMesh& morphed, double band) {
+  Eigen::Vector3d rest_mean = Eigen::Vector3d::Zero(), morphed_mean = Eigen::Vector3d::Zero();
+  int count = 0;
+  for (int v = 0; v < rest.num_vertices(); ++v) {
+    if (!NearTheCut(cut, extent, rest.V.col(v), band)) continue;
+    rest_mean += rest.V.col(v);
+    morphed_mean += morphed.V.col(v);
+    ++count;
+  }
+  if (count < 2) return 0.0;
+  rest_mean /= count;
+  morphed_mean /= count;
+  double rest_spread = 0.0, morphed_spread = 0.0;
+  for (int v = 0; v < rest.num_vertices(); ++v) {
+    if (!NearTheCut(cut, extent, rest.V.col(v), band)) continue;
+    rest_spread += (rest.V.col(v) - rest_mean).squaredNorm();
+    morphed_spread += (morphed.V.col(v) - morphed_mean).squaredNorm();
+  }
+  return rest_spread > 0 ? std::sqrt(morphed_spread / rest_spread) : 0.0;
+}
+
+struct BandSlide {
+  double along = 0.0;  ///< where the cut sits along its normal from the line's centroid
+  double error = 0.0;  ///< its standard error
+};
+
+// Registers the template's band either side of @p cut to the target's plane points there,
+// in the template's frame: each point p is mapped back through the morph's local turn and
+// scale about the line's centroids (rest @p extent.centre, target @p target_centre), then
+// matched to the nearest template band vertex, point to plane, under the model
+//   p~ = c + (k u - delta) n + h w + a e1 + b e2,   u = n.(p - c),  w = (p - c) - u n,
+// with n the cut's normal and e1, e2 across it: a shift delta along the cut (prior
+// N(0, slide_sigma^2): the morph's placement), stretches k along it and h across it (priors
+// N(1, stretch_sigma^2)) and a sideways shift. Linear in the unknowns, so each round is a 5
+// by 5 solve; pairs beyond 3 median residuals are left out. Each plane point averages
+// @p shared target points, so neighbouring residuals are not independent: the residual
+// variance is counted @p shared times, for the priors and the error. Returns where the cut
+// (u~ = 0) lies, u = delta / k, and its standard error, both in template units; empty when
+// too few points take part or the fit leaves its bounds.
+std::optional<BandSlide> FitBandSlide(const io::CutAnnotation& cut, const LineExtent& extent,
+                                      const io::TriangleMesh& rest,
+                                      const Eigen::Matrix3Xd& rest_normals,
+                                      const Eigen::Matrix3d& turn, double scale,
+                                      const Eigen::Vector3d& target_centre,
+                                      const Eigen::Matrix3Xd& plane_points, double band,
+                                      double margin, double stretch_sigma, double slide_sigma,
+                                      int shared) {
+  constexpr int kMinPoints = 50;
+  constexpr int kRounds = 15;
+  constexpr double kMaxStretch = 0.3;  // beyond this the fit has latched onto something else
+  const Eigen::Vector3d n = cut.plane.normal;
+  const Eigen::Vector3d c = extent.centre;
+  const Eigen::Vector3d e1 = n.unitOrthogonal();
+  const Eigen::Vector3d e2 = n.cross(e1);
+  std::vector<int> band_vertices;
+  for (int v = 0; v < rest.num_vertices(); ++v)
+    if (NearTheCut(cut, extent, rest.V.col(v), band + margin)) band_vertices.push_back(v);
+  std::vector<Eigen::Vector3d> points;
+  for (Eigen::Index j = 0; j < plane_points.cols(); ++j) {
+    const Eigen::Vector3d p = c + turn.transpose() * (plane_points.col(j) - target_centre) / scale;
+    if (NearTheCut(cut, extent, p, band)) points.push_back(p);
+  }
+  if (static_cast<int>(band_vertices.size()) < kMinPoints ||
+      static_cast<int>(points.size()) < kMinPoints)
+    return std::nullopt;
+  Eigen::Matrix3Xd surface(3, static_cast<Eigen::Index>(band_vertices.size()));
+  Eigen::Matrix3Xd surface_normals(3, surface.cols());
+  for (std::size_t i = 0; i < band_vertices.size(); ++i) {
+    surface.col(static_cast<Eigen::Index>(i)) = rest.V.col(band_vertices[i]);
+    surface_normals.col(static_cast<Eigen::Index>(i)) = rest_normals.col(band_vertices[i]);
+  }
+  const PointIndex surface_index(surface);
+
+  using Vector5d = Eigen::Matrix<double, 5, 1>;
+  using Matrix5d = Eigen::Matrix<double, 5, 5>;
+  Vector5d x;
+  x << 0.0, 1.0, 1.0, 0.0, 0.0;  // delta, k, h, a, b
+  std::vector<Vector5d> rows(points.size());
+  std::vector<double> rhs(points.size()), residual(points.size());
+  Matrix5d information = Matrix5d::Identity();
+  double variance = 0.0;
+  for (int round = 0; round < kRounds; ++round) {
+    for (std::size_t j = 0; j < points.size(); ++j) {
+      const Eigen::Vector3d d = points[j] - c;
+      const double u = n.dot(d);
+      Eigen::Matrix<double, 3, 5> J;
+      J << -n, u * n, d - u * n, e1, e2;
+      const Eigen::Vector3d moved = c + J * x;
+      const int k = surface_index.Nearest(moved);
+      const Eigen::Vector3d normal = surface_normals.col(k);
+      rows[j] = J.transpose() * normal;
+      rhs[j] = normal.dot(surface.col(k) - c);
+      residual[j] = std::abs(normal.dot(moved - surface.col(k)));
+    }
+    std::vector<double> sorted = residual;
+    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
+                     sorted.end());
+    const double cutoff = 3.0 * std::max(sorted[sorted.size() / 2], 1e-12);
+    Matrix5d A = Matrix5d::Zero();
+    Vector5d b = Vector5d::Zero();
+    double sum_squares = 0.0;
+    int used = 0;
+    for (std::size_t j = 0; j < points.size(); ++j) {
+      if (residual[j] > cutoff) continue;
+      A += rows[j] * rows[j].transpose();
+      b += rows[j] * rhs[j];
+      sum_squares += residual[j] * residual[j];
+      ++used;
+    }
+    if (used < kMinPoints) return std::nullopt;
+    // Plane points share their neighbours, so about one in `shared` residuals is independent.
+    variance = sum_squares / used * shared;
+    const double prior = variance / (stretch_sigma * stretch_sigma);
+    A(1, 1) += prior;
+    b(1) += prior;
+    A(2, 2) += prior;
+    b(2) += prior;
+    A(0, 0) += variance / (slide_sigma * slide_sigma);
+    x = A.ldlt().solve(b);
+    information = A;
+  }
+  if (!x.allFinite() || std::abs(x(1) - 1.0) > kMaxStretch || std::abs(x(2) - 1.0) > kMaxStretch)
+    return std::nullopt;
+  const double along = x(0) / x(1);
+  if (std::abs(along) > 0.5 * band) return std::nullopt;
+  const double error = std::sqrt(variance * information.inverse()(0, 0)) / x(1);
+  return BandSlide{.along = along, .error = error};
+}
+
 }  // namespace
 
 std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
@@ -118,6 +253,7 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
   const Eigen::Matrix3Xd rest_normals = rest.has_normals() ? rest.N : io::VertexNormals(rest);
   const Eigen::Matrix3Xd morphed_normals =
       morphed.has_normals() ? morphed.N : io::VertexNormals(morphed);
+  Eigen::Matrix3Xd plane_points;  // of the target, made when the first band fit needs them
   std::vector<int> found;
   std::vector<double> distances;
   std::vector<TransferredCut> out;
@@ -162,6 +298,28 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
                             options.min_band_vertices)) {
           t.plane.normal = (*turn * cut.plane.normal).normalized();
           t.oriented_by_normals = true;
+          if (options.slide_band > 0) {
+            const double band = options.slide_band * template_size;
+            const double scale = BandScale(cut, extent, rest, morphed, band);
+            if (plane_points.cols() == 0) {
+              plane_points = PlanePoints(target, target_normals, index,
+                                         options.slide_plane_neighbours,
+                                         options.slide_plane_radius * size, true);
+            }
+            const std::optional<BandSlide> fit =
+                scale > 0 ? FitBandSlide(cut, extent, rest, rest_normals, *turn, scale,
+                                         t.plane.point, plane_points, band,
+                                         options.slide_margin * template_size,
+                                         options.slide_stretch_sigma,
+                                         options.slide_sigma * template_size,
+                                         options.slide_plane_neighbours)
+                          : std::nullopt;
+            if (fit) {
+              t.slide = scale * fit->along;
+              t.slide_error = scale * fit->error;
+              t.plane.point += t.slide * t.plane.normal;
+            }
+          }
         }
       }
       const Eigen::Vector3d towards =

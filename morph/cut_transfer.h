@@ -33,6 +33,24 @@ struct CutTransferOptions {
   double normal_max_lean = 0.3;
   /// Band vertices (within normal_max_lean) needed before their normals are used.
   int min_band_vertices = 20;
+  /// Half-width of the band either side of a cut that is registered to the target to place
+  /// the plane along its normal (see TransferredCut::slide); 0 leaves the plane at the
+  /// line's centroid. Needs the normals' turn (normal_band > 0).
+  double slide_band = 0.04;
+  /// Template vertices this far beyond slide_band are matched too, so a shifted band still
+  /// finds its template surface.
+  double slide_margin = 0.03;
+  /// Prior standard deviation of the band's stretch along and across the cut (relative):
+  /// parts of a carcass differ from the template's by several percent, rarely by tens.
+  double slide_stretch_sigma = 0.1;
+  /// Prior standard deviation of the slide itself (fraction of the template's size): what
+  /// the morph's own placement along the body is good to (about 3 mm on a lamb). Where the
+  /// band says little (noise, a profile that barely changes), the slide stays well inside it.
+  double slide_sigma = 0.002;
+  /// The band fit uses plane points (dense_association.h) of this many target points within
+  /// slide_plane_radius, so sensor noise averages out before the fit.
+  int slide_plane_neighbours = 20;
+  double slide_plane_radius = 0.03;
 };
 
 /// One annotated cut carried onto a target.
@@ -53,6 +71,16 @@ struct TransferredCut {
   io::Plane plane;
   /// True when plane.normal came from the band's normals, false from the line's plane fit.
   bool oriented_by_normals = false;
+  /// How far the plane was moved along its normal from the line's centroid (target units,
+  /// towards the part before the cut when positive in the expert's normal's sense): the
+  /// template's own band either side of the cut, registered to the target's there (its
+  /// place along the cut's normal, stretch along and across it and sideways shift), says
+  /// where the cut sits where the morph slid along a body that changes its profile slowly.
+  /// 0 when not moved (no normals' turn, too few points, or the fit left its bounds).
+  double slide = 0.0;
+  /// Standard error of that placement, target units (0 when no fit was made); about the
+  /// prior's (CutTransferOptions::slide_sigma) where the band says little.
+  double slide_error = 0.0;
   /// RMS distance of the line to its own least-squares plane (how far from straight the
   /// morph bent it), target units.
   double fit_rms = 0.0;

@@ -324,6 +324,69 @@ TEST_F(DenseAlignmentTest, CutPlanesTurnWithTheSurfaceNotWithASlipAlongIt) {
   }
 }
 
+// The target is the template turned and scaled; the morph put every vertex on its surface
+// but slid along the body by 1 % of the size (about 13 mm), as a morph may where the profile
+// changes slowly. The line's centroid slides with it; the band fit finds the cut again where
+// the profile curves. On a straight taper a slide looks like a change of girth, and the fit
+// leaves the plane about where the line put it (rack/shoulder here: 13.5 -> 11.1 mm).
+TEST_F(DenseAlignmentTest, CutPlanesMoveBackAlongTheBodyWhereTheMorphSlid) {
+  const io::TriangleMesh& mesh = carcass_->mesh;
+  const double template_size = io::BoundingBoxDiagonal(mesh.V);
+  const double scale = 1.1;
+  const Eigen::Matrix3d R =
+      Eigen::AngleAxisd(0.4, Eigen::Vector3d(1.0, 2.0, 0.5).normalized()).toRotationMatrix();
+  const Eigen::Matrix3Xd target = scale * R * mesh.V;
+  const Eigen::Matrix3Xd target_normals = R * mesh.N;
+  const double slide = 0.01 * template_size;
+  const perception::CarcassShape shape;
+  io::TriangleMesh morphed = mesh;
+  for (int v = 0; v < mesh.num_vertices(); ++v)
+    morphed.V.col(v) = scale * R * shape.Project(mesh.V.col(v) + slide * Eigen::Vector3d::UnitZ());
+  morphed.N = io::VertexNormals(morphed);
+
+  CutTransferOptions no_slide;
+  no_slide.slide_band = 0.0;
+  const double size = scale * template_size;
+  const std::vector<TransferredCut> placed =
+      TransferCuts(carcass_->annotations, mesh, morphed, target, target_normals, size);
+  const std::vector<TransferredCut> left =
+      TransferCuts(carcass_->annotations, mesh, morphed, target, target_normals, size, no_slide);
+  ASSERT_EQ(placed.size(), carcass_->annotations.cuts.size());
+  double sum_left = 0.0, sum_placed = 0.0;
+  for (std::size_t c = 0; c < placed.size(); ++c) {
+    SCOPED_TRACE(placed[c].name);
+    const io::Plane& expert = carcass_->annotations.cuts[c].plane;
+    const io::Plane truth{.point = scale * R * expert.point, .normal = R * expert.normal};
+    const double left_off = std::abs(truth.SignedDistance(left[c].plane.point));
+    const double placed_off = std::abs(truth.SignedDistance(placed[c].plane.point));
+    EXPECT_GT(left_off, 0.6 * scale * slide);  // the line's centroid slid with the morph
+    EXPECT_LT(placed_off, left_off);
+    EXPECT_NE(placed[c].slide, 0.0);
+    EXPECT_GT(placed[c].slide_error, 0.0);
+    EXPECT_EQ(left[c].slide, 0.0);
+    sum_left += left_off;
+    sum_placed += placed_off;
+  }
+  // Measured: 12.2 / 12.6 / 13.5 mm -> 3.2 / 0.7 / 11.1 mm.
+  EXPECT_LT(sum_placed, 0.5 * sum_left);
+}
+
+// Noise of 2 % of the size along the normals: the band says little, so its fit keeps near
+// the morph's placement (the prior) and reports an error near the prior's.
+TEST_F(DenseAlignmentTest, CutPlanesBarelyMoveWhenTheBandSaysLittle) {
+  const io::TriangleMesh& mesh = carcass_->mesh;
+  const double size = io::BoundingBoxDiagonal(mesh.V);
+  const double prior = CutTransferOptions{}.slide_sigma * size;
+  const io::TriangleMesh noisy = perception::AddNormalNoise(mesh, 0.02 * size, 7u);
+  for (const TransferredCut& c :
+       TransferCuts(carcass_->annotations, mesh, mesh, noisy.V, mesh.N, size)) {
+    SCOPED_TRACE(c.name);
+    // Measured: slides of 0.3-0.4 mm, errors 0.98-1.02 of the prior's 2.5 mm.
+    EXPECT_LT(std::abs(c.slide), 0.5 * prior);
+    EXPECT_GT(c.slide_error, 0.8 * prior);
+  }
+}
+
 TEST_F(DenseAlignmentTest, CutPlanesFallBackToTheLineWhenNormalsFixNoRotation) {
   // Morphed normals that all point one way (as on a flat patch) leave the turn about that
   // direction open, so the plane comes from the line alone.

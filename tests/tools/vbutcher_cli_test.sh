@@ -112,7 +112,8 @@ check "capture refuses a bad scene, naming file and key" 2 "badscene.yaml:.*fps"
   "$vbutcher" capture --rig "$work/rig/rig.yaml" --scene "$work/rig/badscene.yaml" --out "$work/x.ply"
 
 # bench --start-from-truth: the dense stage's start, fitted to the true surface, carries the
-# cuts to within a millimetre (what the dense stage then does is the measurement).
+# cuts to within a millimetre by their lines' planes (what the dense stage then does is the
+# measurement).
 check "bench full starts from the truth" 0 "sigma 0: started from the truth at cut dist 0\.[0-9]* mm" \
   "$vbutcher" bench full --pairs 1 --sigmas-mm 0 --start-from-truth --csv "$work/bench.csv"
 [ -s "$work/bench.csv" ] || { echo "FAIL: bench wrote no CSV"; failures=$((failures + 1)); }
