@@ -11,6 +11,7 @@
 #include "io/mesh_measures.h"
 #include "io/surface_point.h"
 #include "morph/dense_association.h"
+#include "morph/feature_association.h"
 #include "morph/point_index.h"
 
 namespace vb::morph {
@@ -100,9 +101,7 @@ std::optional<Eigen::Matrix3d> SurfaceTurn(const io::CutAnnotation& cut, const L
   const Eigen::JacobiSVD<Eigen::Matrix3d> svd(correlation,
                                               Eigen::ComputeFullU | Eigen::ComputeFullV);
   if (svd.singularValues()(1) < kMinNormalSpread * svd.singularValues()(0)) return std::nullopt;
-  Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
-  d(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
-  return svd.matrixU() * d * svd.matrixV().transpose();
+  return NearestRotation(svd);
 }
 
 // How much the morph scaled the band near @p cut: the ratio of the morphed band vertices'
@@ -250,9 +249,11 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
   const double template_size = (rest.V.rowwise().maxCoeff() - rest.V.rowwise().minCoeff()).norm();
   const PointIndex index(target);
   const double radius = options.support_radius * size;
-  const Eigen::Matrix3Xd rest_normals = rest.has_normals() ? rest.N : io::VertexNormals(rest);
-  const Eigen::Matrix3Xd morphed_normals =
-      morphed.has_normals() ? morphed.N : io::VertexNormals(morphed);
+  Eigen::Matrix3Xd computed_rest_normals, computed_morphed_normals;  // for meshes without
+  const Eigen::Matrix3Xd& rest_normals =
+      rest.has_normals() ? rest.N : (computed_rest_normals = io::VertexNormals(rest));
+  const Eigen::Matrix3Xd& morphed_normals =
+      morphed.has_normals() ? morphed.N : (computed_morphed_normals = io::VertexNormals(morphed));
   Eigen::Matrix3Xd plane_points;  // of the target, made when the first band fit needs them
   std::vector<int> found;
   std::vector<double> distances;

@@ -9,6 +9,7 @@
 #include <set>
 
 #include "io/error.h"
+#include "morph/feature_association.h"
 
 namespace vb::morph {
 
@@ -184,10 +185,8 @@ double RigidityResidual(const Eigen::Matrix3Xd& a1, const Eigen::Matrix3Xd& a2, 
     const Eigen::Vector3d e2 = a2.col(i) - a2.col(j);
     cross += (e2 * e1.transpose()) / std::max(e1.squaredNorm(), 1e-24);
   }
-  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(cross, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
-  D(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
-  const Eigen::Matrix3d R = svd.matrixU() * D * svd.matrixV().transpose();
+  const Eigen::Matrix3d R = NearestRotation(
+      Eigen::JacobiSVD<Eigen::Matrix3d>(cross, Eigen::ComputeFullU | Eigen::ComputeFullV));
   double r = 0.0;
   for (int j : neighbours) {
     const Eigen::Vector3d e1 = a1.col(i) - a1.col(j);

@@ -7,6 +7,12 @@
 
 namespace vb::morph {
 
+Eigen::Matrix3d NearestRotation(const Eigen::JacobiSVD<Eigen::Matrix3d>& svd) {
+  Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
+  d(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
+  return svd.matrixU() * d * svd.matrixV().transpose();
+}
+
 Similarity Similarity::FromUmeyama(const Eigen::Matrix4d& T) {
   Similarity fit;
   const Eigen::Matrix3d sR = T.topLeftCorner<3, 3>();

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/SVD>
 #include <utility>
 #include <vector>
 
@@ -19,6 +20,11 @@ struct Similarity {
   static Similarity FromUmeyama(const Eigen::Matrix4d& T);
   Similarity Inverse() const { return {1.0 / scale, R.transpose(), -(R.transpose() * t) / scale}; }
 };
+
+/// The rotation R maximising trace(R^T M) for a 3x3 correlation M = sum_i w_i b_i a_i^T (so R
+/// takes the a_i nearest to the b_i: Kabsch's and Wahba's problem), from M's SVD given as
+/// @p svd (with full U and V): U diag(1, 1, +-1) V^T, the sign making it a rotation.
+Eigen::Matrix3d NearestRotation(const Eigen::JacobiSVD<Eigen::Matrix3d>& svd);
 
 /// The chosen pairing of feature nodes between two skeletons (eq. 3).
 struct Association {
