@@ -47,15 +47,6 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   posed.F = model.mesh.F;
   posed.N = io::VertexNormals(posed);
 
-  auto phase = std::chrono::steady_clock::now();
-  Eigen::Matrix3Xd normals;
-  if (target_normals.cols() == 0) {
-    normals = EstimateNormals(points, index, options.normal_neighbours, posed.V, posed.N);
-  } else {
-    normals = to_template.R * target_normals;
-  }
-  result.normals_seconds = Since(phase);
-
   std::vector<int> samples;
   const int step = std::max(1, static_cast<int>(model.V.cols()) / std::max(1, options.num_samples));
   for (int i = 0; i < model.V.cols(); i += step) samples.push_back(i);
@@ -63,12 +54,29 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   // Each target point's plane passes through the (corrected) centroid of its neighbours,
   // which averages the sensor noise along the normal away; noisier targets average more. The
   // data term is weighted down as the noise grows (a maximum-likelihood weighting).
-  phase = std::chrono::steady_clock::now();
+  auto phase = std::chrono::steady_clock::now();
   const double noise = EstimateNoise(points, index, options.noise_samples, options.noise_neighbours,
                                      options.noise_radius);
   result.noise_seconds = Since(phase);
   const double relative_surface_noise = noise / options.surface_noise;
   result.noise = noise;
+
+  // Normals average over more points as the noise grows, as the plane points below do; a
+  // target's own normals (a mesh's faces) are as noisy as its points, so past the first pass
+  // they are estimated too.
+  phase = std::chrono::steady_clock::now();
+  result.normal_passes = static_cast<int>(
+      std::lround(std::clamp(relative_surface_noise * relative_surface_noise, 1.0,
+                             static_cast<double>(std::max(1, options.max_normal_passes)))));
+  Eigen::Matrix3Xd normals;
+  if (target_normals.cols() == 0 || result.normal_passes > 1) {
+    normals = EstimateNormals(points, index, options.normal_neighbours, result.normal_passes,
+                              posed.V, posed.N);
+  } else {
+    normals = to_template.R * target_normals;
+  }
+  result.normals_seconds = Since(phase);
+
   const int fewest = options.surface_neighbours;
   const int most = std::max(fewest, options.max_surface_neighbours);
   result.surface_neighbours = static_cast<int>(

@@ -18,6 +18,16 @@ struct DenseOptions {
   int num_samples = 2000;
   /// Neighbours for the principal-axis normals of a target given without normals.
   int normal_neighbours = 24;
+  /// Noisier targets widen that neighbourhood (EstimateNormals' passes) to about
+  /// normal_neighbours x (noise / surface_noise)^2 points, up to max_normal_passes times it,
+  /// and a target's own normals are replaced by these once more than one pass is called for.
+  /// A tilted plane has a part along the surface, so noisy normals slide the template.
+  /// Measured on 10 lamb targets (`bench full --pairs 10 --sigmas-mm 0,4,8,16 --clouds
+  /// --rig`), cut-plane distance at sigma 8 / 16 mm: clouds with missing regions 4.71 /
+  /// 10.82 -> 3.02 / 5.54 mm, volume RMSE 0.052 / 0.119 -> 0.038 / 0.072; meshes 2.28 / 3.63
+  /// -> 2.45 / 3.45 mm, volume RMSE 0.029 / 0.073 -> 0.027 / 0.043; sigma <= 4 and the rig
+  /// unchanged (one pass there).
+  int max_normal_passes = 8;
   /// Each associated target point is replaced by the centroid of this many nearest target
   /// points, which averages sensor noise along the normal (measured at sigma 16 mm: mean
   /// error 21 -> 17 mm); few, so curved limbs are not flattened (24 cost 0.02 in volume
@@ -28,9 +38,12 @@ struct DenseOptions {
   /// max_surface_neighbours (past that, limbs flatten). Measured on 10 lamb targets, with
   /// the noise estimate below: cut-plane distance at sigma 8 / 16 mm 3.22 / 4.02 -> 3.02 /
   /// 3.78 mm (meshes) and 5.87 / 11.47 -> 5.59 / 11.29 mm (clouds with missing regions),
-  /// unchanged at sigma <= 4.
+  /// unchanged at sigma <= 4. The cap was 32 while normals came from 24 points (more
+  /// flattened the limbs); with normals that average as much as the noise asks (see
+  /// max_normal_passes), 64: clouds at sigma 8 / 16 mm 3.02 / 5.54 -> 2.97 / 5.28 mm, volume
+  /// RMSE at 16 0.072 -> 0.065, meshes and sigma <= 4 within 0.03 mm.
   double surface_noise = 0.0035;
-  int max_surface_neighbours = 32;
+  int max_surface_neighbours = 64;
   /// Plane points average no farther than this (coarse meshes: a few thousand vertices).
   double surface_radius = 0.03;
   /// The noise estimate (EstimateNoise): about noise_samples target points, each against a
@@ -106,6 +119,7 @@ struct DenseResult {
   std::vector<DenseRound> rounds;
   double noise = 0.0;          ///< estimated sensor noise (standard deviation), template sizes
   int surface_neighbours = 0;  ///< target points averaged per plane point, from the noise
+  int normal_passes = 0;  ///< EstimateNormals' passes, from the noise; 1 keeps a target's own normals
   double normals_seconds = 0.0;
   double noise_seconds = 0.0;
   double total_seconds = 0.0;

@@ -34,13 +34,41 @@ TEST(EstimateNormalsTest, PointsOutwardOnASphere) {
   // The reference says "outward" only roughly: a few of its normals point the other way.
   Eigen::Matrix3Xd reference_normals = P;
   reference_normals.col(0) *= -1.0;
-  const Eigen::Matrix3Xd N = EstimateNormals(P, index, 16, P, reference_normals);
+  const Eigen::Matrix3Xd N = EstimateNormals(P, index, 16, 1, P, reference_normals);
   int outward = 0;
   for (Eigen::Index i = 0; i < P.cols(); ++i) {
     EXPECT_NEAR(N.col(i).norm(), 1.0, 1e-9);
     outward += N.col(i).dot(P.col(i)) > std::cos(10.0 * M_PI / 180.0);
   }
   EXPECT_GE(outward, static_cast<int>(P.cols()) - 2);
+}
+
+TEST(EstimateNormalsTest, MorePassesAverageMoreNoiseAwayAndAgreeWithOneWideQuery) {
+  // 20,000 points on a unit sphere, about 0.025 apart, moved along the normal by sigma 0.02:
+  // noise as large as the spacing, where 24 neighbours read the normal badly.
+  const Eigen::Matrix3Xd outward = SpherePoints(20000, 11);
+  std::mt19937_64 rng(12);
+  std::normal_distribution<double> g(0.0, 0.02);
+  Eigen::Matrix3Xd P = outward;
+  for (Eigen::Index i = 0; i < P.cols(); ++i) P.col(i) *= 1.0 + g(rng);
+  const PointIndex index(P);
+  const auto mean_angle = [&](const Eigen::Matrix3Xd& N) {
+    double sum = 0.0;
+    for (Eigen::Index i = 0; i < N.cols(); ++i)
+      sum += std::acos(std::clamp(N.col(i).dot(outward.col(i)), -1.0, 1.0));
+    return sum / static_cast<double>(N.cols());
+  };
+  const double one = mean_angle(EstimateNormals(P, index, 24, 1, P, outward));
+  const double eight = mean_angle(EstimateNormals(P, index, 24, 8, P, outward));
+  const double wide = mean_angle(EstimateNormals(P, index, 200, 1, P, outward));
+  // Measured: 0.196, 0.0189 and 0.0188 rad.
+  EXPECT_GT(one, 0.15);
+  EXPECT_LT(eight, 0.2 * one);
+  EXPECT_LT(eight, 1.2 * wide);
+  // On a clean sphere the widened neighbourhood (about 0.2 across) still reads the normal
+  // (measured: 0.0099 rad).
+  const PointIndex clean_index(outward);
+  EXPECT_LT(mean_angle(EstimateNormals(outward, clean_index, 24, 8, outward, outward)), 0.02);
 }
 
 TEST(PlanePointsTest, CorrectionRemovesTheCentroidsCurvatureBiasAndKeepsTheAveraging) {
