@@ -19,6 +19,28 @@ Eigen::Matrix3Xd VertexNormals(const TriangleMesh& mesh) {
   return N;
 }
 
+Eigen::VectorXd CurvatureSums(const TriangleMesh& mesh, const Eigen::Matrix3Xd& N) {
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(mesh.num_vertices());
+  Eigen::VectorXi edges = Eigen::VectorXi::Zero(mesh.num_vertices());
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    for (int c = 0; c < 3; ++c) {
+      const int a = mesh.F(c, f);
+      const int b = mesh.F((c + 1) % 3, f);
+      const Eigen::Vector3d d = mesh.V.col(b) - mesh.V.col(a);
+      const double squared_length = d.squaredNorm();
+      if (!(squared_length > 0.0)) continue;
+      const double along = (N.col(b) - N.col(a)).dot(d) / squared_length;
+      sum[a] += along;
+      sum[b] += along;
+      ++edges[a];
+      ++edges[b];
+    }
+  }
+  for (int i = 0; i < mesh.num_vertices(); ++i)
+    if (edges[i] > 0) sum[i] *= 2.0 / edges[i];
+  return sum;
+}
+
 double SignedVolume(const TriangleMesh& mesh) {
   if (mesh.num_vertices() == 0) return 0.0;
   // Relative to a vertex of the mesh, to keep the sum well conditioned far from the origin.

@@ -9,6 +9,13 @@ namespace vb::io {
 /// Area-weighted unit vertex normals of @p mesh (3 by #V); a vertex no face uses gets zero.
 Eigen::Matrix3Xd VertexNormals(const TriangleMesh& mesh);
 
+/// Sum of the two principal curvatures at each vertex (twice the mean curvature; positive
+/// where the surface bends away from its normals, 2 / r on a sphere of radius r with outward
+/// normals), from @p N (3 by #V unit vertex normals): twice the mean over the vertex's edges
+/// of the normal curvature along each, (n_b - n_a).(x_b - x_a) / |x_b - x_a|^2. An edge
+/// shared by two faces counts twice; a vertex without edges gets 0.
+Eigen::VectorXd CurvatureSums(const TriangleMesh& mesh, const Eigen::Matrix3Xd& N);
+
 /// Enclosed volume by the divergence theorem; positive for a closed, outward-oriented mesh.
 double SignedVolume(const TriangleMesh& mesh);
 

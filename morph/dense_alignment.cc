@@ -61,15 +61,14 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   const double relative_surface_noise = noise / options.surface_noise;
   result.noise = noise;
 
-  // Normals average over more points as the noise grows, as the plane points below do; a
-  // target's own normals (a mesh's faces) are as noisy as its points, so past the first pass
-  // they are estimated too.
+  // Estimated normals average over more points as the noise grows, as the plane points
+  // below do.
   phase = std::chrono::steady_clock::now();
-  result.normal_passes = static_cast<int>(
-      std::lround(std::clamp(relative_surface_noise * relative_surface_noise, 1.0,
-                             static_cast<double>(std::max(1, options.max_normal_passes)))));
   Eigen::Matrix3Xd normals;
-  if (target_normals.cols() == 0 || result.normal_passes > 1) {
+  if (target_normals.cols() == 0) {
+    result.normal_passes = static_cast<int>(
+        std::lround(std::clamp(relative_surface_noise * relative_surface_noise, 1.0,
+                               static_cast<double>(std::max(1, options.max_normal_passes)))));
     normals = EstimateNormals(points, index, options.normal_neighbours, result.normal_passes,
                               posed.V, posed.N);
   } else {
@@ -94,10 +93,18 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     for (int j = 0; j < points.cols(); j += reverse_step) reverse_samples.push_back(j);
   }
   // Eq. (14) for template vertex i against target point j's plane.
+  // On a noisy curved surface the morph shrinks: a ball's centroid sits sigma^2 (k1 + k2)
+  // towards the concave side (the points the noise pushed there crowd), and PlanePoints'
+  // correction takes back only part of that. Each plane point moves out by that first-order
+  // amount, with the posed template's curvature at the paired vertex; never more than sigma.
+  Eigen::VectorXd curvature;
+  if (options.unbias_plane_points) curvature = io::CurvatureSums(posed, posed.N);
   const auto plane_constraint = [&](int i, int j, DenseRound* info) {
-    info->mean_plane_distance += std::abs(normals.col(j).dot(posed.V.col(i) - centroids.col(j)));
-    return ConstrainPoint(model.vertex_weights, i, model.V.col(i), centroids.col(j),
-                          normals.col(j));
+    Eigen::Vector3d plane_point = centroids.col(j);
+    if (options.unbias_plane_points)
+      plane_point += std::clamp(noise * noise * curvature[i], -noise, noise) * normals.col(j);
+    info->mean_plane_distance += std::abs(normals.col(j).dot(posed.V.col(i) - plane_point));
+    return ConstrainPoint(model.vertex_weights, i, model.V.col(i), plane_point, normals.col(j));
   };
   // Eq. (12) on pairs (template vertex, target point): which of them to keep.
   const auto filter = [&](const std::vector<int>& vertices, const std::vector<int>& targets) {
@@ -170,6 +177,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     }
     posed.V = DeformPoints(model.graph, model.vertex_weights, model.V, result.state);
     posed.N = io::VertexNormals(posed);
+    if (options.unbias_plane_points) curvature = io::CurvatureSums(posed, posed.N);
   }
 
   result.mesh.F = model.mesh.F;

@@ -19,14 +19,15 @@ struct DenseOptions {
   /// Neighbours for the principal-axis normals of a target given without normals.
   int normal_neighbours = 24;
   /// Noisier targets widen that neighbourhood (EstimateNormals' passes) to about
-  /// normal_neighbours x (noise / surface_noise)^2 points, up to max_normal_passes times it,
-  /// and a target's own normals are replaced by these once more than one pass is called for.
+  /// normal_neighbours x (noise / surface_noise)^2 points, up to max_normal_passes times it.
   /// A tilted plane has a part along the surface, so noisy normals slide the template.
-  /// Measured on 10 lamb targets (`bench full --pairs 10 --sigmas-mm 0,4,8,16 --clouds
-  /// --rig`), cut-plane distance at sigma 8 / 16 mm: clouds with missing regions 4.71 /
-  /// 10.82 -> 3.02 / 5.54 mm, volume RMSE 0.052 / 0.119 -> 0.038 / 0.072; meshes 2.28 / 3.63
-  /// -> 2.45 / 3.45 mm, volume RMSE 0.029 / 0.073 -> 0.027 / 0.043; sigma <= 4 and the rig
-  /// unchanged (one pass there).
+  /// Measured on 10 lamb clouds with missing regions (`bench full --pairs 10 --sigmas-mm
+  /// 0,2,4,8,16 --clouds --rig`), cut-plane distance at sigma 8 / 16 mm 4.71 / 10.82 -> 3.02 /
+  /// 5.54 mm, volume RMSE 0.052 / 0.119 -> 0.038 / 0.072; on seed 2 at 16 mm 13.96 -> 6.64;
+  /// sigma <= 4 and the rig unchanged (one pass there; two or three passes at sigma <= 4 made
+  /// clouds at 4 mm 2.04 -> 2.13 / 2.22). A target's own normals (a mesh's faces) are kept:
+  /// replaced by these, meshes at sigma 16 went 0.073 -> 0.043 in volume RMSE on seed 1 but
+  /// 0.083 -> 0.115 on seed 2, with cut distance 4.40 -> 6.02 mm.
   int max_normal_passes = 8;
   /// Each associated target point is replaced by the centroid of this many nearest target
   /// points, which averages sensor noise along the normal (measured at sigma 16 mm: mean
@@ -66,6 +67,20 @@ struct DenseOptions {
   /// The correction keeps the noise averaging. Measured on 10 lamb meshes, sigma 0 / 16 mm:
   /// part-volume RMSE 0.023 -> 0.017 and 0.092 -> 0.071 (with the two changes below).
   bool correct_plane_offset = true;
+  /// Each plane point is moved out along its normal by sigma^2 times the sum of the posed
+  /// template's principal curvatures at the paired vertex (sigma the estimated noise; at most
+  /// sigma). The morph shrank with the noise: every part's volume was 2-3 % small at sigma 8 mm
+  /// and 5-7 % at 16, on meshes and clouds and both seeds. sigma^2 (k1 + k2) is how far a
+  /// ball's centroid sits towards the concave side of a noisy surface (the points pushed
+  /// there crowd); PlanePoints' correction removes only part of it (on a unit sphere and
+  /// cylinder at sigma 0.01-0.04, 30-80 %). The full amount is used, not a fitted share:
+  /// the mean part error went to within 2 % of zero (+0.2 to +2 %). Measured (`bench full
+  /// --pairs 10 --sigmas-mm 0,2,4,8,16 --clouds --rig`), volume RMSE at sigma 8 / 16 mm: meshes
+  /// 0.029 / 0.073 -> 0.024 / 0.045, clouds 0.036 / 0.065 -> 0.026 / 0.035; seed 2 meshes
+  /// 0.036 / 0.081 -> 0.031 / 0.071, clouds 0.057 / 0.083 -> 0.050 / 0.073. Cut distance at
+  /// 16 mm: clouds 5.28 -> 5.16 (seed 2 6.64 -> 5.50), meshes 3.56 -> 3.44 (seed 2 4.41 ->
+  /// 4.55); sigma <= 4 within 0.11 mm.
+  bool unbias_plane_points = true;
   /// Target points associated back to the posed template each round (eq. 11 with the roles
   /// swapped, then the same filter), evenly spread; 0 leaves only the template's own. The
   /// template's points find the target surface nearest them; the target's points make every
@@ -119,7 +134,7 @@ struct DenseResult {
   std::vector<DenseRound> rounds;
   double noise = 0.0;          ///< estimated sensor noise (standard deviation), template sizes
   int surface_neighbours = 0;  ///< target points averaged per plane point, from the noise
-  int normal_passes = 0;  ///< EstimateNormals' passes, from the noise; 1 keeps a target's own normals
+  int normal_passes = 0;       ///< EstimateNormals' passes, from the noise (0: own normals)
   double normals_seconds = 0.0;
   double noise_seconds = 0.0;
   double total_seconds = 0.0;

@@ -37,5 +37,37 @@ TEST(MeshMeasuresTest, SphereNormalsPointOutwards) {
   EXPECT_GT(SignedVolume(sphere), 0.97 * exact);
 }
 
+TEST(MeshMeasuresTest, CurvatureSumsAreTwiceTheInverseRadiusOnASphere) {
+  for (const double r : {0.5, 2.0}) {
+    TriangleMesh sphere = test::Sphere(r, 3);
+    // With the sphere's own normals every edge reads 1 / r.
+    const Eigen::VectorXd exact = CurvatureSums(sphere, sphere.V / r);
+    ASSERT_EQ(exact.size(), sphere.num_vertices());
+    for (int i = 0; i < sphere.num_vertices(); ++i) EXPECT_NEAR(exact[i], 2.0 / r, 1e-9 / r);
+    // With the mesh's area-weighted normals, which lean at the octahedron's six corners
+    // (measured there: 3.37 against 4 at r = 0.5).
+    const Eigen::VectorXd outward = CurvatureSums(sphere, VertexNormals(sphere));
+    for (int i = 0; i < sphere.num_vertices(); ++i) EXPECT_NEAR(outward[i], 2.0 / r, 0.4 / r);
+    EXPECT_NEAR(outward.mean(), 2.0 / r, 0.06 / r);
+    // Normals turned inward: the surface bends towards them.
+    sphere.F.row(1).swap(sphere.F.row(2));
+    const Eigen::VectorXd inward = CurvatureSums(sphere, VertexNormals(sphere));
+    EXPECT_NEAR(inward.mean(), -2.0 / r, 0.06 / r);
+  }
+}
+
+TEST(MeshMeasuresTest, CurvatureSumsAreZeroOnAPlaneAndWhereNoEdgeIs) {
+  TriangleMesh square;
+  square.V.resize(3, 5);
+  square.V << 0, 1, 1, 0, 5,  //
+      0, 0, 1, 1, 5,          //
+      0, 0, 0, 0, 5;
+  square.F.resize(3, 2);
+  square.F << 0, 0, 1, 2, 2, 3;
+  const Eigen::VectorXd k = CurvatureSums(square, VertexNormals(square));
+  for (int i = 0; i < 4; ++i) EXPECT_NEAR(k[i], 0.0, 1e-12);
+  EXPECT_EQ(k[4], 0.0);
+}
+
 }  // namespace
 }  // namespace vb::io
