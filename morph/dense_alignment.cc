@@ -92,13 +92,13 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     const int reverse_step = std::max(1, static_cast<int>(points.cols()) / options.reverse_samples);
     for (int j = 0; j < points.cols(); j += reverse_step) reverse_samples.push_back(j);
   }
-  // Eq. (14) for template vertex i against target point j's plane.
   // On a noisy curved surface the morph shrinks: a ball's centroid sits sigma^2 (k1 + k2)
   // towards the concave side (the points the noise pushed there crowd), and PlanePoints'
   // correction takes back only part of that. Each plane point moves out by that first-order
   // amount, with the posed template's curvature at the paired vertex; never more than sigma.
   Eigen::VectorXd curvature;
   if (options.unbias_plane_points) curvature = io::CurvatureSums(posed, posed.N);
+  // Eq. (14) for template vertex i against target point j's plane.
   const auto plane_constraint = [&](int i, int j, DenseRound* info) {
     Eigen::Vector3d plane_point = centroids.col(j);
     if (options.unbias_plane_points)

@@ -23,7 +23,8 @@ struct DenseOptions {
   /// A tilted plane has a part along the surface, so noisy normals slide the template.
   /// Measured on 10 lamb clouds with missing regions (`bench full --pairs 10 --sigmas-mm
   /// 0,2,4,8,16 --clouds --rig`), cut-plane distance at sigma 8 / 16 mm 4.71 / 10.82 -> 3.02 /
-  /// 5.54 mm, volume RMSE 0.052 / 0.119 -> 0.038 / 0.072; on seed 2 at 16 mm 13.96 -> 6.64;
+  /// 5.54 mm, volume RMSE 0.052 / 0.119 -> 0.038 / 0.072 (seed 2 at 16 mm, with the 64
+  /// plane-point neighbours below, 13.96 -> 6.64 mm);
   /// sigma <= 4 and the rig unchanged (one pass there; two or three passes at sigma <= 4 made
   /// clouds at 4 mm 2.04 -> 2.13 / 2.22). A target's own normals (a mesh's faces) are kept:
   /// replaced by these, meshes at sigma 16 went 0.073 -> 0.043 in volume RMSE on seed 1 but
