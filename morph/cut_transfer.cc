@@ -108,20 +108,19 @@ std::optional<Eigen::Matrix3d> SurfaceTurn(const io::CutAnnotation& cut, const L
 // spread about their centroid to the template's.
 double BandScale(const io::CutAnnotation& cut, const LineExtent& extent,
                  const io::TriangleMesh& rest, const io::TriangleMesh& morphed, double band) {
+  std::vector<int> in_band;
+  for (int v = 0; v < rest.num_vertices(); ++v)
+    if (NearTheCut(cut, extent, rest.V.col(v), band)) in_band.push_back(v);
+  if (in_band.size() < 2) return 0.0;
   Eigen::Vector3d rest_mean = Eigen::Vector3d::Zero(), morphed_mean = Eigen::Vector3d::Zero();
-  int count = 0;
-  for (int v = 0; v < rest.num_vertices(); ++v) {
-    if (!NearTheCut(cut, extent, rest.V.col(v), band)) continue;
+  for (int v : in_band) {
     rest_mean += rest.V.col(v);
     morphed_mean += morphed.V.col(v);
-    ++count;
   }
-  if (count < 2) return 0.0;
-  rest_mean /= count;
-  morphed_mean /= count;
+  rest_mean /= static_cast<double>(in_band.size());
+  morphed_mean /= static_cast<double>(in_band.size());
   double rest_spread = 0.0, morphed_spread = 0.0;
-  for (int v = 0; v < rest.num_vertices(); ++v) {
-    if (!NearTheCut(cut, extent, rest.V.col(v), band)) continue;
+  for (int v : in_band) {
     rest_spread += (rest.V.col(v) - rest_mean).squaredNorm();
     morphed_spread += (morphed.V.col(v) - morphed_mean).squaredNorm();
   }
@@ -146,14 +145,11 @@ struct BandSlide {
 // variance is counted @p shared times, for the priors and the error. Returns where the cut
 // (u~ = 0) lies, u = delta / k, and its standard error, both in template units; empty when
 // too few points take part or the fit leaves its bounds.
-std::optional<BandSlide> FitBandSlide(const io::CutAnnotation& cut, const LineExtent& extent,
-                                      const io::TriangleMesh& rest,
-                                      const Eigen::Matrix3Xd& rest_normals,
-                                      const Eigen::Matrix3d& turn, double scale,
-                                      const Eigen::Vector3d& target_centre,
-                                      const Eigen::Matrix3Xd& plane_points, double band,
-                                      double margin, double stretch_sigma, double slide_sigma,
-                                      int shared) {
+std::optional<BandSlide> FitBandSlide(
+    const io::CutAnnotation& cut, const LineExtent& extent, const io::TriangleMesh& rest,
+    const Eigen::Matrix3Xd& rest_normals, const Eigen::Matrix3d& turn, double scale,
+    const Eigen::Vector3d& target_centre, const Eigen::Matrix3Xd& plane_points, double band,
+    double margin, double stretch_sigma, double slide_sigma, int shared) {
   constexpr int kMinPoints = 50;
   constexpr int kRounds = 15;
   constexpr double kMaxStretch = 0.3;  // beyond this the fit has latched onto something else
@@ -202,8 +198,8 @@ std::optional<BandSlide> FitBandSlide(const io::CutAnnotation& cut, const LineEx
       residual[j] = std::abs(normal.dot(moved - surface.col(k)));
     }
     std::vector<double> sorted = residual;
-    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
-                     sorted.end());
+    std::nth_element(sorted.begin(),
+                     sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2), sorted.end());
     const double cutoff = 3.0 * std::max(sorted[sorted.size() / 2], 1e-12);
     Matrix5d A = Matrix5d::Zero();
     Vector5d b = Vector5d::Zero();
@@ -246,7 +242,7 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
                                          const CutTransferOptions& options) {
   VB_DEMAND(rest.num_vertices() == morphed.num_vertices() && target.cols() > 0 &&
             target_normals.cols() == target.cols() && size > 0);
-  const double template_size = (rest.V.rowwise().maxCoeff() - rest.V.rowwise().minCoeff()).norm();
+  const double template_size = io::BoundingBoxDiagonal(rest.V);
   const PointIndex index(target);
   const double radius = options.support_radius * size;
   Eigen::Matrix3Xd computed_rest_normals, computed_morphed_normals;  // for meshes without
@@ -303,18 +299,17 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
             const double band = options.slide_band * template_size;
             const double scale = BandScale(cut, extent, rest, morphed, band);
             if (plane_points.cols() == 0) {
-              plane_points = PlanePoints(target, target_normals, index,
-                                         options.slide_plane_neighbours,
-                                         options.slide_plane_radius * size, true);
+              plane_points =
+                  PlanePoints(target, target_normals, index, options.slide_plane_neighbours,
+                              options.slide_plane_radius * size, true);
             }
             const std::optional<BandSlide> fit =
-                scale > 0 ? FitBandSlide(cut, extent, rest, rest_normals, *turn, scale,
-                                         t.plane.point, plane_points, band,
-                                         options.slide_margin * template_size,
-                                         options.slide_stretch_sigma,
-                                         options.slide_sigma * template_size,
-                                         options.slide_plane_neighbours)
-                          : std::nullopt;
+                scale > 0
+                    ? FitBandSlide(cut, extent, rest, rest_normals, *turn, scale, t.plane.point,
+                                   plane_points, band, options.slide_margin * template_size,
+                                   options.slide_stretch_sigma, options.slide_sigma * template_size,
+                                   options.slide_plane_neighbours)
+                    : std::nullopt;
             if (fit) {
               t.slide = scale * fit->along;
               t.slide_error = scale * fit->error;

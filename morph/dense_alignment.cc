@@ -96,8 +96,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   // towards the concave side (the points the noise pushed there crowd), and PlanePoints'
   // correction takes back only part of that. Each plane point moves out by that first-order
   // amount, with the posed template's curvature at the paired vertex; never more than sigma.
-  Eigen::VectorXd curvature;
-  if (options.unbias_plane_points) curvature = io::CurvatureSums(posed, posed.N);
+  Eigen::VectorXd curvature;  // of the posed template, each round
   // Eq. (14) for template vertex i against target point j's plane.
   const auto plane_constraint = [&](int i, int j, DenseRound* info) {
     Eigen::Vector3d plane_point = centroids.col(j);
@@ -117,6 +116,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     return FilterAssociations(a1, a2, options.filter);
   };
   for (int round = 0; round < options.rounds; ++round) {
+    if (options.unbias_plane_points) curvature = io::CurvatureSums(posed, posed.N);
     DenseRound info;
     phase = std::chrono::steady_clock::now();
     const DenseAssociation pairs =
@@ -177,7 +177,6 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     }
     posed.V = DeformPoints(model.graph, model.vertex_weights, model.V, result.state);
     posed.N = io::VertexNormals(posed);
-    if (options.unbias_plane_points) curvature = io::CurvatureSums(posed, posed.N);
   }
 
   result.mesh.F = model.mesh.F;
