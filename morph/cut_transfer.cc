@@ -239,10 +239,13 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
                                          const io::TriangleMesh& morphed,
                                          const Eigen::Matrix3Xd& target,
                                          const Eigen::Matrix3Xd& target_normals, double size,
-                                         const CutTransferOptions& options) {
+                                         const CutTransferOptions& options, double noise) {
   VB_DEMAND(rest.num_vertices() == morphed.num_vertices() && target.cols() > 0 &&
-            target_normals.cols() == target.cols() && size > 0);
+            target_normals.cols() == target.cols() && size > 0 && noise >= 0 &&
+            options.slide_band_noise > 0);
   const double template_size = io::BoundingBoxDiagonal(rest.V);
+  const double slide_band =
+      options.slide_band * std::sqrt(std::max(1.0, noise / options.slide_band_noise));
   const PointIndex index(target);
   const double radius = options.support_radius * size;
   Eigen::Matrix3Xd computed_rest_normals, computed_morphed_normals;  // for meshes without
@@ -295,8 +298,8 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
                             options.min_band_vertices)) {
           t.plane.normal = (*turn * cut.plane.normal).normalized();
           t.oriented_by_normals = true;
-          if (options.slide_band > 0) {
-            const double band = options.slide_band * template_size;
+          if (slide_band > 0) {
+            const double band = slide_band * template_size;
             const double scale = BandScale(cut, extent, rest, morphed, band);
             if (plane_points.cols() == 0) {
               plane_points =
@@ -313,6 +316,7 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
             if (fit) {
               t.slide = scale * fit->along;
               t.slide_error = scale * fit->error;
+              t.slide_band = slide_band * size;
               t.plane.point += t.slide * t.plane.normal;
             }
           }

@@ -117,6 +117,7 @@ void WriteCutsReport(const std::filesystem::path& path, const io::Annotations& a
          {"oriented_by_normals", c.oriented_by_normals},
          {"slide", c.slide},
          {"slide_error", c.slide_error},
+         {"slide_band", c.slide_band},
          {"coverage", c.coverage},
          {"gap", c.gap},
          {"confidence", c.confidence},
