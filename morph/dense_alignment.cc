@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
 
 #include "io/mesh_measures.h"
 #include "morph/point_index.h"
@@ -40,7 +41,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   const Similarity to_template = to_target.Inverse();
   Eigen::Matrix3Xd points(3, target.cols());
   for (Eigen::Index i = 0; i < target.cols(); ++i) points.col(i) = to_template(target.col(i));
-  const PointIndex index(points);
+  auto index = std::make_unique<PointIndex>(points);
 
   io::TriangleMesh posed;
   posed.V = DeformPoints(model.graph, model.vertex_weights, model.V, coarse.state);
@@ -55,8 +56,20 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   // which averages the sensor noise along the normal away; noisier targets average more. The
   // data term is weighted down as the noise grows (a maximum-likelihood weighting).
   auto phase = std::chrono::steady_clock::now();
-  const double noise = EstimateNoise(points, index, options.noise_samples, options.noise_neighbours,
-                                     options.noise_radius);
+  const NoiseEstimate estimate = EstimateNoise(points, *index, options.noise_samples,
+                                               options.noise_neighbours, options.noise_radius);
+  const double noise = estimate.sigma;
+  // A cloud denser than its noise is used as the estimate read it, every stride-th point:
+  // every neighbourhood below then reaches beyond the noise, as on a sparser cloud.
+  Eigen::Matrix3Xd own_normals = to_template.R * target_normals;
+  if (options.thin_to_noise && estimate.stride > 1) {
+    result.stride = estimate.stride;
+    index.reset();  // it refers to the points about to be replaced
+    const auto every = Eigen::seq(0, Eigen::last, estimate.stride);
+    points = Eigen::Matrix3Xd(points(Eigen::all, every));
+    if (own_normals.cols() != 0) own_normals = Eigen::Matrix3Xd(own_normals(Eigen::all, every));
+    index = std::make_unique<PointIndex>(points);
+  }
   result.noise_seconds = Since(phase);
   const double relative_surface_noise = noise / options.surface_noise;
   result.noise = noise;
@@ -69,10 +82,10 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     result.normal_passes = static_cast<int>(
         std::lround(std::clamp(relative_surface_noise * relative_surface_noise, 1.0,
                                static_cast<double>(std::max(1, options.max_normal_passes)))));
-    normals = EstimateNormals(points, index, options.normal_neighbours, result.normal_passes,
+    normals = EstimateNormals(points, *index, options.normal_neighbours, result.normal_passes,
                               posed.V, posed.N);
   } else {
-    normals = to_template.R * target_normals;
+    normals = own_normals;
   }
   result.normals_seconds = Since(phase);
 
@@ -82,7 +95,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
       std::lround(std::clamp(fewest * relative_surface_noise * relative_surface_noise,
                              static_cast<double>(fewest), static_cast<double>(most))));
   const Eigen::Matrix3Xd centroids =
-      PlanePoints(points, normals, index, result.surface_neighbours, options.surface_radius,
+      PlanePoints(points, normals, *index, result.surface_neighbours, options.surface_radius,
                   options.correct_plane_offset);
   const double relative_noise = noise / options.noise_reference;
   const double noise_factor = 1.0 / (1.0 + relative_noise * relative_noise);
@@ -120,7 +133,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     DenseRound info;
     phase = std::chrono::steady_clock::now();
     const DenseAssociation pairs =
-        AssociateDense(posed.V, posed.N, samples, points, normals, index, options.association);
+        AssociateDense(posed.V, posed.N, samples, points, normals, *index, options.association);
     info.associated = pairs.size();
     info.association_seconds = Since(phase);
 
@@ -185,6 +198,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     result.mesh.V.col(i) = to_target(posed.V.col(i));
   result.mesh.N = io::VertexNormals(result.mesh);
   result.target_normals = to_target.R * normals;
+  result.target = target(Eigen::all, Eigen::seq(0, Eigen::last, result.stride));
   result.ok = true;
   result.total_seconds = Since(start);
   return result;

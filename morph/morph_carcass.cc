@@ -28,9 +28,10 @@ CarcassResult MorphFromCoarse(const TemplateModel& model, const io::Annotations&
         r.error = "dense stage: " + r.dense.error;
       } else {
         const auto phase = std::chrono::steady_clock::now();
-        r.check = CheckMorph(model, r.coarse, r.dense, target, options.check);
-        r.cuts = TransferCuts(annotations, model.mesh, r.dense.mesh, target, r.dense.target_normals,
-                              r.coarse.template_to_target.scale, options.cuts, r.dense.noise);
+        r.check = CheckMorph(model, r.coarse, r.dense, options.check);
+        r.cuts = TransferCuts(annotations, model.mesh, r.dense.mesh, r.dense.target,
+                              r.dense.target_normals, r.coarse.template_to_target.scale,
+                              options.cuts, r.dense.noise);
         for (TransferredCut& cut : r.cuts) cut.confidence *= r.check.confidence;
         if (!r.cuts.empty()) r.parts = CutParts(r.dense.mesh, r.cuts);
         r.cuts_seconds = Since(phase);

@@ -10,8 +10,8 @@
 namespace vb::morph {
 
 MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
-                      const DenseResult& dense, const Eigen::Matrix3Xd& target,
-                      const MorphCheckOptions& options) {
+                      const DenseResult& dense, const MorphCheckOptions& options) {
+  const Eigen::Matrix3Xd& target = dense.target;
   MorphCheck check;
   if (std::isfinite(coarse.runner_up_disagreement) && coarse.runner_up_disagreement > 0)
     check.ambiguity = coarse.disagreement / coarse.runner_up_disagreement;

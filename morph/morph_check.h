@@ -51,8 +51,8 @@ struct MorphCheckOptions {
   double stretch_end = 0.36;
 };
 
+/// Reads the target points the dense stage used (DenseResult::target).
 MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
-                      const DenseResult& dense, const Eigen::Matrix3Xd& target,
-                      const MorphCheckOptions& options = {});
+                      const DenseResult& dense, const MorphCheckOptions& options = {});
 
 }  // namespace vb::morph

@@ -90,6 +90,7 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
                   {"estimated_noise_rel", dense->noise},
                   {"surface_neighbours", dense->surface_neighbours},
                   {"normal_passes", dense->normal_passes},
+                  {"target_stride", dense->stride},
                   {"normals_s", dense->normals_seconds},
                   {"noise_s", dense->noise_seconds},
                   {"total_s", dense->total_seconds},

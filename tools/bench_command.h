@@ -7,6 +7,7 @@
 
 #include "io/triangle_mesh.h"
 #include "morph/dense_alignment.h"
+#include "perception/carcass_generator.h"
 
 namespace vb::tools {
 
@@ -16,6 +17,8 @@ struct BenchOptions {
   std::vector<double> sigmas_mm = {0, 4, 16};
   std::uint64_t seed = 1;
   bool clouds = false;  ///< also sampled clouds with missing regions
+  /// Points sampled over each cloud target before the missing regions are dropped.
+  int cloud_points = perception::CloudOptions{}.num_points;
   bool rig = false;     ///< full stage: also clouds fused from a 4-camera virtual rig
   std::vector<std::filesystem::path> shapes;  ///< extra closed meshes, re-posed by bends
   int shape_pairs = 5;

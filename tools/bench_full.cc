@@ -162,7 +162,7 @@ FullRow Evaluate(const morph::TemplateModel& model, const io::Annotations& annot
     return 1000.0 * sum / static_cast<double>(annotations.cuts[c].line.size());
   };
   const std::vector<morph::TransferredCut> floor_cuts =
-      morph::TransferCuts(annotations, model.mesh, truth.mesh, points, dense.target_normals,
+      morph::TransferCuts(annotations, model.mesh, truth.mesh, dense.target, dense.target_normals,
                           coarse.template_to_target.scale, options.cuts, dense.noise);
   for (std::size_t c = 0; c < floor_cuts.size(); ++c)
     row.cut_floor_mm.push_back(mean_distance_mm(floor_cuts[c].plane, c));
@@ -173,8 +173,8 @@ FullRow Evaluate(const morph::TemplateModel& model, const io::Annotations& annot
     line_only.normal_band = 0.0;
     line_only.slide_band = 0.0;
     const std::vector<morph::TransferredCut> start_cuts =
-        morph::TransferCuts(annotations, model.mesh, coarse.mesh, points, dense.target_normals,
-                            coarse.template_to_target.scale, line_only);
+        morph::TransferCuts(annotations, model.mesh, coarse.mesh, dense.target,
+                            dense.target_normals, coarse.template_to_target.scale, line_only);
     for (std::size_t c = 0; c < start_cuts.size(); ++c)
       row.cut_start_mm.push_back(mean_distance_mm(start_cuts[c].plane, c));
   }
@@ -234,6 +234,7 @@ int RunFullBench(const BenchOptions& options) {
           normals = io::VertexNormals(noisy);
         } else {
           perception::CloudOptions cloud;
+          cloud.num_points = options.cloud_points;
           cloud.sigma_m = sigma / 1000.0;
           cloud.missing_regions = true;
           points = perception::SampleSurfaceCloud(truth, cloud, seed + 29).points;

@@ -91,8 +91,15 @@ int RunMorphCommand(const MorphCommandOptions& options) {
       coarse.deformation_kept ? "kept" : "dropped: the rigid placement fit the surface better",
       coarse.total_seconds);
   if (full) {
-    std::printf("morph: dense: normals %.3f s, %zu rounds, total %.3f s\n", dense.normals_seconds,
-                dense.rounds.size(), dense.total_seconds);
+    // A cloud denser than its noise is used at every n-th point (DenseOptions::thin_to_noise).
+    const std::string used = dense.stride == 1
+                                 ? "all points used"
+                                 : "every " + std::to_string(dense.stride) + "th point used, " +
+                                       std::to_string(dense.target.cols()) + " of " +
+                                       std::to_string(target.points.cols());
+    std::printf(
+        "morph: dense: noise %.3g of the size (%s), normals %.3f s, %zu rounds, total %.3f s\n",
+        dense.noise, used.c_str(), dense.normals_seconds, dense.rounds.size(), dense.total_seconds);
   }
   if (full) {
     std::printf(

@@ -105,6 +105,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   bench_cmd->add_option("--seed", bench.seed, "Seed of the targets")->capture_default_str();
   bench_cmd->add_flag("--clouds", bench.clouds, "Also sampled clouds with missing regions");
+  bench_cmd
+      ->add_option("--cloud-points", bench.cloud_points,
+                   "Points sampled per cloud target before the missing regions are dropped")
+      ->check(CLI::Range(100, 2000000))
+      ->capture_default_str();
   bench_cmd->add_flag("--rig", bench.rig,
                       "Full stage: also clouds fused from a 4-camera virtual rig (sensor model)");
   bench_cmd

@@ -63,6 +63,13 @@ for key in '"leg_loin"' '"loin_rack"' '"rack_shoulder"' '"confidence"' '"volume"
   grep -q -- "$key" "$work/c.json" 2>/dev/null || { echo "FAIL: cuts JSON lacks $key"; failures=$((failures + 1)); }
 done
 grep -q '"rounds"' "$work/fr.json" 2>/dev/null || { echo "FAIL: report lacks the dense rounds"; failures=$((failures + 1)); }
+# A cloud much denser than its noise: the morph reads and uses it at every n-th point.
+check "synth writes a dense noisy cloud" 0 "template:" "$vbutcher" synth --out "$work/dense" --count 1 \
+  --seed 5 --sigma-mm 16 --cloud --cloud-points 80000
+check "morph uses a dense noisy cloud at every n-th point" 0 "every [0-9]*th point used" \
+  "$vbutcher" morph --template "$work/dense/template.ply" --target "$work/dense/target_000_cloud.ply" \
+  --out "$work/d.ply" --stage full --report "$work/dr.json"
+grep -Eq '"target_stride": ([2-9]|1[0-9])' "$work/dr.json" 2>/dev/null || { echo "FAIL: report lacks the stride"; failures=$((failures + 1)); }
 check "morph --cuts needs --annotations" 2 "--annotations" \
   "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/x.ply" --stage full --cuts "$work/x.json"
 check "morph --annotations needs the full stage" 2 "--stage full" \
@@ -117,6 +124,8 @@ check "capture refuses a bad scene, naming file and key" 2 "badscene.yaml:.*fps"
 check "bench full starts from the truth" 0 "sigma 0: started from the truth at cut dist 0\.[0-9]* mm" \
   "$vbutcher" bench full --pairs 1 --sigmas-mm 0 --start-from-truth --csv "$work/bench.csv"
 [ -s "$work/bench.csv" ] || { echo "FAIL: bench wrote no CSV"; failures=$((failures + 1)); }
+check "bench refuses too few cloud points" nonzero "cloud-points" \
+  "$vbutcher" bench full --pairs 1 --cloud-points 5
 
 echo "$failures failed"
 [ "$failures" -eq 0 ]
