@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <thread>
 
@@ -15,12 +16,20 @@ namespace {
 
 constexpr std::int64_t kMs = 1000000;
 
+constexpr double kPeriodNs = 1e9 / 30;
+
 class RigCaptureTest : public test::VirtualRigTest {
  protected:
   // Polls for @p ms milliseconds.
   static void PollFor(RigCapture* capture, int ms) {
     const std::int64_t end = MonotonicNs() + ms * kMs;
     while (MonotonicNs() < end) capture->Poll();
+  }
+  // Polls once; returns how long the poll took.
+  static std::int64_t TimedPoll(RigCapture* capture) {
+    const std::int64_t start = MonotonicNs();
+    capture->Poll();
+    return MonotonicNs() - start;
   }
 };
 
@@ -30,8 +39,15 @@ TEST_F(RigCaptureTest, EveryCameraDeliversTimestampedFrames) {
   ASSERT_EQ(dut.num_cameras(), 4);
   std::array<std::uint64_t, 4> last_sequence{};
   std::array<std::int64_t, 4> last_time{};
-  const std::int64_t end = MonotonicNs() + 1000 * kMs;
-  while (MonotonicNs() < end) {
+  // Until every camera has delivered 10 frames: a third of a second at 30 fps; a sanitizer
+  // build on a loaded 2-core machine renders at a third of that rate or less.
+  const auto fewest_frames = [&] {
+    std::uint64_t fewest = dut.status(0).frames;
+    for (int c = 1; c < 4; ++c) fewest = std::min(fewest, dut.status(c).frames);
+    return fewest;
+  };
+  const std::int64_t give_up = MonotonicNs() + 5000 * kMs;
+  while (fewest_frames() < 10 && MonotonicNs() < give_up) {
     dut.Poll();
     for (int c = 0; c < 4; ++c) {
       const DepthFrame& f = dut.frame(c);
@@ -44,7 +60,6 @@ TEST_F(RigCaptureTest, EveryCameraDeliversTimestampedFrames) {
   for (int c = 0; c < 4; ++c) {
     const CameraStatus& s = dut.status(c);
     EXPECT_EQ(s.health, CameraHealth::kOk) << c << ": " << s.last_error;
-    // 30 fps for a second; a sanitizer build on a loaded 2-core machine renders at half that.
     EXPECT_GE(s.frames, 10u) << c;
     EXPECT_GT(s.valid_ratio, 0.1) << c;  // the carcass fills a good part of the view
     EXPECT_EQ(dut.frame(c).width, 640);
@@ -66,16 +81,18 @@ TEST_F(RigCaptureTest, FrozenCameraIsReportedWithinFivePeriodsWhileOthersFlow) {
   std::uint64_t hash = dut.frame(1).hash;
   const std::uint64_t before0 = dut.status(0).frames, before2 = dut.status(2).frames;
   const std::int64_t give_up = MonotonicNs() + 3000 * kMs;
+  std::int64_t longest_poll = 0;
   while (dut.status(1).health == CameraHealth::kOk && MonotonicNs() < give_up) {
-    dut.Poll();
+    longest_poll = std::max(longest_poll, TimedPoll(&dut));
     if (dut.frame(1).hash != hash) {
       hash = dut.frame(1).hash;
       last_distinct = dut.frame(1).host_time_ns;
     }
   }
   ASSERT_EQ(dut.status(1).health, CameraHealth::kFrozen) << dut.status(1).last_error;
-  const double periods = (dut.status(1).health_since_ns - last_distinct) / (1e9 / 30);
-  EXPECT_LE(periods, 5.5);  // 5 periods plus the poll that notices
+  // 5 periods, plus the poll that notices (long in a sanitizer build on a loaded machine).
+  const double periods = (dut.status(1).health_since_ns - last_distinct) / kPeriodNs;
+  EXPECT_LE(periods, 5.5 + longest_poll / kPeriodNs);
   PollFor(&dut, 300);
   EXPECT_EQ(dut.status(0).health, CameraHealth::kOk);
   EXPECT_EQ(dut.status(2).health, CameraHealth::kOk);
@@ -93,12 +110,14 @@ TEST_F(RigCaptureTest, MissingCameraIsReportedAndRecoveredByReopening) {
   SetFault("VB0004", CameraFault::kMissing);
   std::int64_t last_frame = dut.frame(3).host_time_ns;
   const std::int64_t give_up = MonotonicNs() + 3000 * kMs;
+  std::int64_t longest_poll = 0;
   while (dut.status(3).health == CameraHealth::kOk && MonotonicNs() < give_up) {
-    dut.Poll();
+    longest_poll = std::max(longest_poll, TimedPoll(&dut));
     last_frame = dut.frame(3).host_time_ns;
   }
   ASSERT_EQ(dut.status(3).health, CameraHealth::kFrozen) << dut.status(3).last_error;
-  EXPECT_LE((dut.status(3).health_since_ns - last_frame) / (1e9 / 30), 5.5);
+  EXPECT_LE((dut.status(3).health_since_ns - last_frame) / kPeriodNs,
+            5.5 + longest_poll / kPeriodNs);
   EXPECT_EQ(dut.status(0).health, CameraHealth::kOk);
   // Recovery: a stream restart, then device reopens that fail while the camera is gone.
   PollFor(&dut, 1200);
