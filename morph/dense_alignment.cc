@@ -61,13 +61,10 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   const double noise = estimate.sigma;
   // A cloud denser than its noise is used as the estimate read it, every stride-th point:
   // every neighbourhood below then reaches beyond the noise, as on a sparser cloud.
-  Eigen::Matrix3Xd own_normals = to_template.R * target_normals;
   if (options.thin_to_noise && estimate.stride > 1) {
     result.stride = estimate.stride;
     index.reset();  // it refers to the points about to be replaced
-    const auto every = Eigen::seq(0, Eigen::last, estimate.stride);
-    points = Eigen::Matrix3Xd(points(Eigen::all, every));
-    if (own_normals.cols() != 0) own_normals = Eigen::Matrix3Xd(own_normals(Eigen::all, every));
+    points = Eigen::Matrix3Xd(points(Eigen::all, Eigen::seq(0, Eigen::last, result.stride)));
     index = std::make_unique<PointIndex>(points);
   }
   result.noise_seconds = Since(phase);
@@ -85,7 +82,9 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     normals = EstimateNormals(points, *index, options.normal_neighbours, result.normal_passes,
                               posed.V, posed.N);
   } else {
-    normals = own_normals;
+    const Eigen::Matrix3Xd used =
+        target_normals(Eigen::all, Eigen::seq(0, Eigen::last, result.stride));
+    normals = to_template.R * used;
   }
   result.normals_seconds = Since(phase);
 
