@@ -26,8 +26,9 @@ struct DepthNoiseOptions {
 };
 
 /// Turns noise-free depth (metres, float) into what the sensor would report (uint16 mm,
-/// 0 = no reading). Draws from a precomputed table of normal deviates, so a VGA frame costs
-/// about a millisecond and allocates nothing. Not thread safe: one per camera.
+/// 0 = no reading). Draws from precomputed tables of deviates and whole-pixel offsets, walked
+/// a few entries at a time, so a VGA frame costs a few milliseconds and allocates nothing.
+/// Not thread safe: one per camera.
 class DepthNoise {
  public:
   DepthNoise(const DepthNoiseOptions& options, std::uint64_t seed);
@@ -42,12 +43,18 @@ class DepthNoise {
  private:
   float Normal() { return table_[(cursor_ += stride_) & (kTableSize - 1)]; }
   float Uniform() { return uniform_[(cursor_ += stride_ + 2) & (kTableSize - 1)]; }
+  int Lateral() { return lateral_[(cursor_ += stride_) & (kTableSize - 1)]; }
+  /// x rounded to the nearest whole number, for x in [0, 65535.5); 0 below, 65535 above.
+  static std::uint16_t RoundPositive(float x) {
+    return x <= 0.0f ? 0 : x >= 65535.0f ? 65535 : static_cast<std::uint16_t>(x + 0.5f);
+  }
 
   static constexpr std::uint32_t kTableSize = 1u << 18;
   DepthNoiseOptions options_;
   std::mt19937_64 rng_;
   std::vector<float> table_;    // N(0, 1) deviates
   std::vector<float> uniform_;  // U(0, 1) deviates
+  std::vector<std::int8_t> lateral_;  // N(0, lateral_sigma_px) rounded to whole pixels
   std::uint32_t cursor_ = 0, stride_ = 1;
 };
 

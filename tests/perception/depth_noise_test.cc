@@ -80,6 +80,73 @@ TEST(DepthNoiseTest, DepthEdgesDropOut) {
   EXPECT_EQ(inner_zeros, 0);
 }
 
+TEST(DepthNoiseTest, LateralNoiseReadsANearbyPixel) {
+  // A ramp of 10 mm per column and no axial noise: each reading names the column it came from.
+  const int w = 200, h = 200;
+  std::vector<float> depth(w * h), cosines(w * h, 1.0f);
+  for (int v = 0; v < h; ++v)
+    for (int u = 0; u < w; ++u) depth[static_cast<std::size_t>(v * w + u)] = 1.0f + 0.01f * u;
+  DepthNoiseOptions options;
+  options.axial_a_m = options.axial_b_per_m = 0.0;
+  DepthNoise dut(options, 5);
+  std::vector<std::uint16_t> out(w * h);
+  long n = 0, moved = 0, far = 0;
+  double sum = 0;
+  for (int frame = 0; frame < 3; ++frame) {
+    dut.Apply(depth, cosines, w, h, &out);
+    for (int v = 0; v < h; ++v)
+      for (int u = 5; u < w - 5; ++u) {
+        const int offset = (out[static_cast<std::size_t>(v * w + u)] - 1000) / 10 - u;
+        ++n;
+        moved += offset != 0;
+        far += std::abs(offset) > 3;
+        sum += offset;
+      }
+  }
+  // round(0.5 N) is not 0 when |N| >= 1: 31.7 % of draws.
+  EXPECT_NEAR(static_cast<double>(moved) / n, 0.317, 0.015);
+  EXPECT_NEAR(sum / n, 0.0, 0.01);
+  EXPECT_EQ(far, 0);
+}
+
+TEST(DepthNoiseTest, EachFrameAndPixelDrawsItsOwnNoise) {
+  // A flat wall at 2 m: the deviations of two frames, and of neighbouring pixels in one
+  // frame, are uncorrelated (the tables are walked afresh each frame).
+  const int w = 200, h = 200;
+  std::vector<float> depth(w * h, 2.0f), cosines(w * h, 1.0f);
+  DepthNoiseOptions options;
+  options.lateral_sigma_px = 0;
+  DepthNoise dut(options, 11);
+  std::vector<std::uint16_t> first(w * h), second(w * h);
+  dut.Apply(depth, cosines, w, h, &first);
+  dut.Apply(depth, cosines, w, h, &second);
+  auto correlation = [](const std::vector<double>& a, const std::vector<double>& b) {
+    double ab = 0, aa = 0, bb = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      ab += a[i] * b[i];
+      aa += a[i] * a[i];
+      bb += b[i] * b[i];
+    }
+    return ab / std::sqrt(aa * bb);
+  };
+  std::vector<double> a, b, left, right;
+  for (int v = 0; v < h; ++v)
+    for (int u = 0; u + 1 < w; ++u) {
+      const std::size_t i = static_cast<std::size_t>(v * w + u);
+      a.push_back(first[i] - 2000.0);
+      b.push_back(second[i] - 2000.0);
+      left.push_back(first[i] - 2000.0);
+      right.push_back(first[i + 1] - 2000.0);
+    }
+  // 39,800 pairs: the standard error of a correlation of 0 is 0.005.
+  EXPECT_LT(std::abs(correlation(a, b)), 0.02);
+  EXPECT_LT(std::abs(correlation(left, right)), 0.02);
+  // ...and the deviations are there: sigma at 2 m is 6.1 mm.
+  double sq = 0;
+  for (double x : a) sq += x * x;
+  EXPECT_NEAR(std::sqrt(sq / static_cast<double>(a.size())), 1000 * AxialSigma(options, 2.0), 0.5);
+}
+
 TEST(DepthNoiseTest, DisabledIsExactMillimetres) {
   DepthNoiseOptions options;
   options.enabled = false;
