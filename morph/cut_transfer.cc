@@ -152,7 +152,11 @@ std::optional<BandSlide> FitBandSlide(
     double margin, double stretch_sigma, double slide_sigma, int shared) {
   constexpr int kMinPoints = 50;
   constexpr int kRounds = 15;
-  constexpr double kMaxStretch = 0.3;  // beyond this the fit has latched onto something else
+  // Beyond this the fit has latched onto something else. Over 1,320 fits (bench full, seeds 1
+  // and 2, every sigma, the morphs' and the true surfaces') the stretches lay within 0.9-1.1
+  // for 80 % and never beyond 1.31; the one at 1.31 (leg / loin on a rig carcass) was right,
+  // 0.9 mm, and dropping it at the old bound of 0.3 left the cut 6.4 mm off.
+  constexpr double kMaxStretch = 0.5;
   const Eigen::Vector3d n = cut.plane.normal;
   const Eigen::Vector3d c = extent.centre;
   const Eigen::Vector3d e1 = n.unitOrthogonal();

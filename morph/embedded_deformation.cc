@@ -206,7 +206,7 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
   solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
   solver_options.max_num_iterations = options.max_iterations;
   solver_options.num_threads = options.num_threads;
-  solver_options.function_tolerance = 1e-7;
+  solver_options.function_tolerance = options.function_tolerance;
   solver_options.logging_type = ceres::SILENT;
   if (options.linear_solver == EmbeddedDeformationOptions::LinearSolver::kConjugateGradients) {
     solver_options.linear_solver_type = ceres::CGNR;

@@ -51,6 +51,9 @@ struct EmbeddedDeformationOptions {
   enum class LinearSolver { kSparseNormalCholesky, kConjugateGradients };
   LinearSolver linear_solver = LinearSolver::kSparseNormalCholesky;
   int num_threads = 2;
+  /// The solve stops when a step changes the cost by less than this fraction of it (Ceres'
+  /// function_tolerance).
+  double function_tolerance = 1e-7;
 };
 
 struct SolveSummary {
