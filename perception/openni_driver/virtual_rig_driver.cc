@@ -31,11 +31,38 @@ namespace {
 
 constexpr const char* kUriScheme = "vbrig://";
 
+// Identifies one version of a file on disk.
+struct FileStamp {
+  ino_t inode = 0;
+  struct timespec mtime {};
+  off_t size = 0;
+
+  bool operator==(const FileStamp& o) const {
+    return inode == o.inode && mtime.tv_sec == o.mtime.tv_sec &&
+           mtime.tv_nsec == o.mtime.tv_nsec && size == o.size;
+  }
+};
+
+// Returns the stamp of @p path; inode 0 when it cannot be read. Allocates nothing: the
+// watcher calls it every 50 ms in the capture loop.
+FileStamp Stamp(const std::string& path) {
+  FileStamp stamp;
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return stamp;
+  stamp.inode = st.st_ino;
+  stamp.mtime = st.st_mtim;
+  stamp.size = st.st_size;
+  return stamp;
+}
+
 // One loaded state of the scene file: what every stream renders.
 struct Snapshot {
-  std::uint64_t version = 0;
   VirtualScene scene;
-  io::TriangleMesh carcass_Rig;  // empty when nothing hangs on the hook
+  std::shared_ptr<const io::TriangleMesh> carcass_Rig;  // empty when nothing hangs on the hook
+  FileStamp carcass_stamp;
+  // Changes only with what the depth image shows (carcass, floor), not with a fault set on
+  // some camera: a camera re-renders only then, as a real one would not pause either.
+  std::uint64_t geometry_version = 0;
 };
 
 // Reloads the scene file when it changes (checked at most every 50 ms). A file that fails to
@@ -56,19 +83,29 @@ class SceneWatcher {
     const auto now = std::chrono::steady_clock::now();
     if (!force && now - last_check_ < std::chrono::milliseconds(50)) return;
     last_check_ = now;
-    struct stat st {};
-    if (::stat(path_.c_str(), &st) != 0) return;
-    if (!force && st.st_ino == inode_ && st.st_mtim.tv_sec == mtime_.tv_sec &&
-        st.st_mtim.tv_nsec == mtime_.tv_nsec && st.st_size == size_)
-      return;
-    inode_ = st.st_ino;
-    mtime_ = st.st_mtim;
-    size_ = st.st_size;
+    const FileStamp stamp = Stamp(path_);
+    if (stamp.inode == 0) return;
+    if (!force && stamp == stamp_) return;
+    stamp_ = stamp;
     try {
       auto next = std::make_shared<Snapshot>();
       next->scene = LoadVirtualScene(path_);
-      if (!next->scene.carcass_path.empty()) next->carcass_Rig = io::ReadMesh(next->scene.carcass_path);
-      next->version = current_ ? current_->version + 1 : 1;
+      // The carcass file is read again only when it changed (a fault toggled in the scene
+      // file leaves it alone).
+      if (!next->scene.carcass_path.empty()) {
+        next->carcass_stamp = Stamp(next->scene.carcass_path);
+        if (current_ && current_->carcass_Rig && next->carcass_stamp.inode != 0 &&
+            next->carcass_stamp == current_->carcass_stamp &&
+            next->scene.carcass_path == current_->scene.carcass_path) {
+          next->carcass_Rig = current_->carcass_Rig;
+        } else {
+          next->carcass_Rig =
+              std::make_shared<const io::TriangleMesh>(io::ReadMesh(next->scene.carcass_path));
+        }
+      }
+      const bool same_geometry = current_ && current_->carcass_Rig == next->carcass_Rig &&
+                                 current_->scene.floor_z_m == next->scene.floor_z_m;
+      next->geometry_version = !current_ ? 1 : current_->geometry_version + !same_geometry;
       current_ = std::move(next);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "<3>vbrig driver: %s (keeping the previous scene)\n", e.what());
@@ -79,9 +116,7 @@ class SceneWatcher {
   std::mutex mutex_;
   std::shared_ptr<const Snapshot> current_;
   std::chrono::steady_clock::time_point last_check_{};
-  ino_t inode_ = 0;
-  struct timespec mtime_ {};
-  off_t size_ = 0;
+  FileStamp stamp_;
 };
 
 OniVideoMode DepthMode(const Intrinsics& k, int fps) {
@@ -201,13 +236,14 @@ class DepthStream : public oni::driver::StreamBase {
       const CameraFault fault = scene.fault(calibration_.serial);
       if (fault == CameraFault::kMissing) continue;
       if (fault != CameraFault::kFrozen) {
-        if (snapshot->version != rendered_version) {
-          renderer.Render(snapshot->carcass_Rig, scene.floor_z_m);
-          rendered_version = snapshot->version;
-          if (!noise || seed != scene.seed) {
-            seed = scene.seed;
-            noise = std::make_unique<DepthNoise>(scene.noise, seed * 7919 + camera_);
-          }
+        if (snapshot->geometry_version != rendered_version) {
+          renderer.Render(snapshot->carcass_Rig ? *snapshot->carcass_Rig : io::TriangleMesh{},
+                          scene.floor_z_m);
+          rendered_version = snapshot->geometry_version;
+        }
+        if (!noise || seed != scene.seed) {
+          seed = scene.seed;
+          noise = std::make_unique<DepthNoise>(scene.noise, seed * 7919 + camera_);
         }
         noise->Apply(renderer.depth_m(), renderer.cos_incidence(), k.width, k.height, &image);
       }
