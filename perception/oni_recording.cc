@@ -2,9 +2,13 @@
 
 #include <OpenNI.h>
 
+#include <poll.h>
+#include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cerrno>
 #include <cstdio>
 #include <memory>
 #include <stdexcept>
@@ -12,6 +16,11 @@
 namespace vb::perception {
 
 namespace {
+
+// How long after its recording should have ended a child may take to answer: opening the
+// camera and settling (0.5 s) and closing it, with room for a sanitizer build on a loaded
+// machine.
+constexpr double kChildGraceS = 60.0;
 
 // Records one camera in this process; returns the frames read while recording, or -1.
 long RecordOne(const CameraCalibration& camera, const CaptureOptions& capture_options,
@@ -83,14 +92,30 @@ RecordSummary RecordOni(const RigCalibration& rig, const CaptureOptions& capture
   RigCalibration playback = rig;
   playback.rig_name = rig.rig_name + "_playback";
   playback.cameras.clear();
+  // A child that has not answered by the deadline (a driver stuck in open or close, say) is
+  // killed and its camera left out, so recording never waits forever.
+  const std::int64_t deadline =
+      MonotonicNs() + static_cast<std::int64_t>((options.seconds + kChildGraceS) * 1e9);
   for (const Child& child : children) {
     long frames = -1;
-    const ssize_t got = read(child.pipe_fd, &frames, sizeof(frames));
+    ssize_t got = -1;
+    pollfd ready{child.pipe_fd, POLLIN, 0};
+    int polled = -1;
+    do {
+      const std::int64_t left_ms = std::max<std::int64_t>(0, (deadline - MonotonicNs()) / 1000000);
+      polled = poll(&ready, 1, static_cast<int>(std::min<std::int64_t>(left_ms, 1 << 30)));
+    } while (polled < 0 && errno == EINTR);
+    if (polled > 0) got = read(child.pipe_fd, &frames, sizeof(frames));
     close(child.pipe_fd);
+    if (polled == 0) {
+      std::fprintf(stderr, "record: %s: no answer within %.0f s of the recording's end; stopped\n",
+                   rig.cameras[child.camera].name.c_str(), kChildGraceS);
+      kill(child.pid, SIGKILL);
+    }
     int status = 0;
     waitpid(child.pid, &status, 0);
     if (got != sizeof(frames) || frames < 0 || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
-      continue;  // not streaming: left out
+      continue;  // not streaming, or stuck: left out
     summary.files.push_back(child.file);
     summary.frames_seen.push_back(static_cast<std::uint64_t>(frames));
     CameraCalibration replay = rig.cameras[child.camera];

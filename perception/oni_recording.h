@@ -24,8 +24,10 @@ struct RecordSummary {
 /// Records every camera of @p rig for @p options.seconds with OpenNI2's own recorder (one
 /// out_dir/SERIAL.oni per camera) and writes out_dir/rig.yaml: the same calibration with each
 /// camera's URI pointing at its recording, so replaying a line is running with that file.
-/// Cameras that are not streaming are left out of both. Each camera is recorded by a child
-/// process of its own (OpenNI2's recorders corrupt each other's frames within one process).
+/// Cameras that are not streaming, or whose recorder has not finished 60 s after the
+/// recording should have ended (it is killed), are left out of both. Each camera is recorded
+/// by a child process of its own (OpenNI2's recorders corrupt each other's frames within one
+/// process).
 /// @pre this process has no OpenNI2 capture open (children are forked).
 /// @throws std::runtime_error when nothing could be recorded or a file cannot be written.
 RecordSummary RecordOni(const RigCalibration& rig, const CaptureOptions& capture,
