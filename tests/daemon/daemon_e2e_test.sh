@@ -37,10 +37,12 @@ X_SawRig: {translation: [0, 0, 1.8], rotation_wxyz: [1, 0, 0, 0]}
 YAML
 "$daemon" --config "$work/vbd.yaml" --check-config >/dev/null || fail "--check-config"
 
-# Three carcasses; a listener counts the cut-lines messages.
-"$vbutcher" lcm-listen --url "$url" --count 4 --timeout 480 >"$work/listen.txt" &
+# Three carcasses; a listener counts the cut-lines messages. The time limits below only stop
+# a hang: every wait ends as soon as its job is out (about 10 s per carcass in a release build,
+# 40 s in a sanitizer build on a loaded 2-core machine; ctest's limit is 1200 s).
+"$vbutcher" lcm-listen --url "$url" --count 4 --timeout 1000 >"$work/listen.txt" &
 listener=$!
-"$daemon" --config "$work/vbd.yaml" --run-seconds 260 2>"$work/daemon.log" &
+"$daemon" --config "$work/vbd.yaml" --run-seconds 1000 2>"$work/daemon.log" &
 daemon_pid=$!
 for _ in $(seq 100); do grep -q "LCM on" "$work/daemon.log" && break; sleep 0.1; done
 grep -q "LCM on" "$work/daemon.log" || fail "the daemon did not come up"
@@ -48,10 +50,10 @@ grep -q "LCM on" "$work/daemon.log" || fail "the daemon did not come up"
 # fusion and ten per morph, and the daemon rightly drops a waiting job for a newer one), then
 # the hook is emptied.
 hang() {  # hang <seed> <jobs expected after it>
-  "$vbutcher" virtual-line --scene "$work/rig/scene.yaml" --count 1 --seed "$1" --hang-s 120 \
+  "$vbutcher" virtual-line --scene "$work/rig/scene.yaml" --count 1 --seed "$1" --hang-s 240 \
     --gap-s 0 --truth "$work/truth_$1.yaml" >/dev/null &
   local line=$!
-  for _ in $(seq 1200); do
+  for _ in $(seq 2400); do
     [ "$(grep -c ' points, fusion ' "$work/daemon.log")" -ge "$2" ] && break
     sleep 0.1
   done

@@ -108,6 +108,7 @@ TEST_F(RigCaptureTest, MissingCameraIsReportedAndRecoveredByReopening) {
   PollFor(&dut, 500);
   ASSERT_EQ(dut.status(3).health, CameraHealth::kOk);
   SetFault("VB0004", CameraFault::kMissing);
+  const std::uint64_t before0 = dut.status(0).frames;
   std::int64_t last_frame = dut.frame(3).host_time_ns;
   const std::int64_t give_up = MonotonicNs() + 3000 * kMs;
   std::int64_t longest_poll = 0;
@@ -118,12 +119,12 @@ TEST_F(RigCaptureTest, MissingCameraIsReportedAndRecoveredByReopening) {
   ASSERT_EQ(dut.status(3).health, CameraHealth::kFrozen) << dut.status(3).last_error;
   EXPECT_LE((dut.status(3).health_since_ns - last_frame) / kPeriodNs,
             5.5 + longest_poll / kPeriodNs);
-  EXPECT_EQ(dut.status(0).health, CameraHealth::kOk);
   // Recovery: a stream restart, then device reopens that fail while the camera is gone.
   PollFor(&dut, 1200);
   EXPECT_GE(dut.status(3).stream_restarts, 1);
   EXPECT_GE(dut.status(3).device_reopens, 1);
   EXPECT_NE(dut.status(3).health, CameraHealth::kOk);
+  EXPECT_GE(dut.status(0).frames, before0 + 10);  // the others kept flowing throughout
   // Plugged back in: the next reopen brings it back.
   SetFault("VB0004", CameraFault::kNone);
   const std::int64_t back_by = MonotonicNs() + 3000 * kMs;
@@ -180,8 +181,9 @@ TEST_F(RigCaptureTest, SteadyStateCaptureAndFusionAllocateNothing) {
   const std::uint64_t frames_before = dut.status(0).frames;
   polls = 0;
   capture_and_fuse(30);
-  EXPECT_EQ(allocations.count(), 0);
-  if (allocations.count() != 0) test::PrintCountedStacks(2);
+  const long counted = allocations.count();
+  if (counted != 0) test::PrintCountedStacks(2);  // before gtest's own report allocates
+  EXPECT_EQ(counted, 0);
   const double frames = 4.0 * static_cast<double>(dut.status(0).frames - frames_before);
   // OpenNI2's own allocations (queue nodes, wait bookkeeping) are freed again: at most the
   // frames still queued can be outstanding. `vbutcher bench capture` shows RSS stays flat.
@@ -189,7 +191,7 @@ TEST_F(RigCaptureTest, SteadyStateCaptureAndFusionAllocateNothing) {
   EXPECT_LE(std::abs(outstanding), 16);
   std::printf("%ld allocations by our code; inside OpenNI2 %ld allocations and %ld frees for "
               "%.0f frames and %ld polls\n",
-              allocations.count(), allocations.excluded(), allocations.excluded_frees(), frames,
+              counted, allocations.excluded(), allocations.excluded_frees(), frames,
               polls);
   EXPECT_GT(cloud.size, 10000);
 }
