@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstdio>
+#include <functional>
 #include <memory>
 #include <stdexcept>
 
@@ -18,13 +19,15 @@ namespace vb::perception {
 namespace {
 
 // How long after its recording should have ended a child may take to answer: opening the
-// camera and settling (0.5 s) and closing it, with room for a sanitizer build on a loaded
+// camera and settling (0.5 s) and closing the file, with room for a sanitizer build on a loaded
 // machine.
 constexpr double kChildGraceS = 60.0;
 
-// Records one camera in this process; returns the frames read while recording, or -1.
+// Records one camera in this process. Once the file is closed, and before the camera is,
+// calls @p done with the frames read while recording; returns -1 when it could not record.
 long RecordOne(const CameraCalibration& camera, const CaptureOptions& capture_options,
-               const std::filesystem::path& file, double seconds) {
+               const std::filesystem::path& file, double seconds,
+               const std::function<void(long)>& done) {
   RigCalibration one;
   one.rig_name = "record";
   one.cameras = {camera};
@@ -46,7 +49,9 @@ long RecordOne(const CameraCalibration& camera, const CaptureOptions& capture_op
   while (MonotonicNs() < end) capture.Poll();
   recorder.stop();
   recorder.destroy();
-  return static_cast<long>(capture.status(0).frames - first);
+  const long frames = static_cast<long>(capture.status(0).frames - first);
+  done(frames);
+  return frames;
 }
 
 }  // namespace
@@ -75,14 +80,19 @@ RecordSummary RecordOni(const RigCalibration& rig, const CaptureOptions& capture
     if (child.pid < 0) throw std::runtime_error("record: fork failed");
     if (child.pid == 0) {
       close(fds[0]);
+      // Answers as soon as the file is complete and leaves without closing the camera or
+      // OpenNI2: this process ends here, so nothing slow to stop can hold up the parent.
+      const auto answer = [fd = fds[1]](long frames) {
+        const ssize_t written = write(fd, &frames, sizeof(frames));
+        _exit(written == sizeof(frames) && frames >= 0 ? 0 : 1);
+      };
       long frames = -1;
       try {
-        frames = RecordOne(rig.cameras[c], capture_options, child.file, options.seconds);
+        frames = RecordOne(rig.cameras[c], capture_options, child.file, options.seconds, answer);
       } catch (const std::exception& e) {
         std::fprintf(stderr, "record: %s: %s\n", rig.cameras[c].name.c_str(), e.what());
       }
-      const ssize_t written = write(fds[1], &frames, sizeof(frames));
-      _exit(written == sizeof(frames) && frames >= 0 ? 0 : 1);
+      answer(frames);
     }
     close(fds[1]);
     child.pipe_fd = fds[0];
