@@ -82,11 +82,12 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
   if (root["virtual_scene"]) c.virtual_scene = file("virtual_scene", true);
 
   const Section capture(r, root, "capture",
-                        {"fps", "wait_timeout_ms", "frozen_periods", "min_valid_ratio",
-                         "recovery_period_ms", "register_depth_to_color"});
+                        {"fps", "wait_timeout_ms", "frozen_periods", "first_frame_timeout_ms",
+                         "min_valid_ratio", "recovery_period_ms", "register_depth_to_color"});
   capture.Int("fps", 1, 120, &c.capture.fps);
   capture.Int("wait_timeout_ms", 1, 1000, &c.capture.wait_timeout_ms);
   capture.Int("frozen_periods", 2, 100, &c.capture.frozen_periods);
+  capture.Int("first_frame_timeout_ms", 100, 60000, &c.capture.first_frame_timeout_ms);
   capture.Double("min_valid_ratio", 0.0, 1.0, &c.capture.min_valid_ratio);
   capture.Int("recovery_period_ms", 100, 600000, &c.capture.recovery_period_ms);
   if (capture["register_depth_to_color"])

@@ -23,8 +23,9 @@ namespace {
 // machine.
 constexpr double kChildGraceS = 60.0;
 
-// Records one camera in this process. Once the file is closed, and before the camera is,
-// calls @p done with the frames read while recording; returns -1 when it could not record.
+// Records one camera in this process. Before the camera is closed, calls @p done with the
+// frames read while recording once the file is closed, or with -1 when it cannot record;
+// returns the same.
 long RecordOne(const CameraCalibration& camera, const CaptureOptions& capture_options,
                const std::filesystem::path& file, double seconds,
                const std::function<void(long)>& done) {
@@ -32,16 +33,26 @@ long RecordOne(const CameraCalibration& camera, const CaptureOptions& capture_op
   one.rig_name = "record";
   one.cameras = {camera};
   RigCapture capture(one, capture_options);
-  // Let the camera start before attaching: a stream that never delivers is not recorded.
+  // Let the camera start before attaching (at least 0.5 s, and until its first frame, which
+  // capture waits for up to first_frame_timeout_ms): a stream that never delivers is not
+  // recorded.
   const std::int64_t settle_until = MonotonicNs() + 500000000;
-  while (MonotonicNs() < settle_until) capture.Poll();
+  while (MonotonicNs() < settle_until ||
+         (capture.status(0).frames == 0 && capture.status(0).health == CameraHealth::kStarting))
+    capture.Poll();
   openni::VideoStream* stream = capture.depth_stream(0);
-  if (stream == nullptr || capture.status(0).frames == 0) return -1;
+  if (stream == nullptr || capture.status(0).frames == 0) {
+    std::fprintf(stderr, "record: %s: not streaming (%s: %s)\n", camera.name.c_str(),
+                 ToString(capture.status(0).health), capture.status(0).last_error);
+    done(-1);
+    return -1;
+  }
   openni::Recorder recorder;
   if (recorder.create(file.c_str()) != openni::STATUS_OK ||
       recorder.attach(*stream) != openni::STATUS_OK || recorder.start() != openni::STATUS_OK) {
     std::fprintf(stderr, "%s: cannot record: %s\n", file.c_str(),
                  openni::OpenNI::getExtendedError());
+    done(-1);
     return -1;
   }
   const std::uint64_t first = capture.status(0).frames;

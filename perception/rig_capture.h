@@ -29,6 +29,9 @@ struct CaptureOptions {
   int fps = 30;                    ///< the depth mode asked of every camera
   int wait_timeout_ms = 10;        ///< longest Poll() waits for a frame
   int frozen_periods = 5;          ///< frame periods of silence or sameness that mean frozen
+  /// How long a camera just opened may take to deliver its first frame before it counts as
+  /// missing (a PrimeSense takes a few hundred ms; a loaded machine longer).
+  int first_frame_timeout_ms = 2000;
   double min_valid_ratio = 0.02;   ///< below this (for frozen_periods frames): kLowValid
   /// Recovery of an unhealthy camera, in steps this far apart: restart its stream, then
   /// reopen the device, then keep trying to reopen.
