@@ -24,9 +24,8 @@ namespace {
 constexpr double kChildGraceS = 60.0;
 
 // Records one camera in this process. Before the camera is closed, calls @p done with the
-// frames read while recording once the file is closed, or with -1 when it cannot record;
-// returns the same.
-long RecordOne(const CameraCalibration& camera, const CaptureOptions& capture_options,
+// frames read while recording once the file is closed, or with -1 when it cannot record.
+void RecordOne(const CameraCalibration& camera, const CaptureOptions& capture_options,
                const std::filesystem::path& file, double seconds,
                const std::function<void(long)>& done) {
   RigCalibration one;
@@ -45,7 +44,7 @@ long RecordOne(const CameraCalibration& camera, const CaptureOptions& capture_op
     std::fprintf(stderr, "record: %s: not streaming (%s: %s)\n", camera.name.c_str(),
                  ToString(capture.status(0).health), capture.status(0).last_error);
     done(-1);
-    return -1;
+    return;
   }
   openni::Recorder recorder;
   if (recorder.create(file.c_str()) != openni::STATUS_OK ||
@@ -53,16 +52,14 @@ long RecordOne(const CameraCalibration& camera, const CaptureOptions& capture_op
     std::fprintf(stderr, "%s: cannot record: %s\n", file.c_str(),
                  openni::OpenNI::getExtendedError());
     done(-1);
-    return -1;
+    return;
   }
   const std::uint64_t first = capture.status(0).frames;
   const std::int64_t end = MonotonicNs() + static_cast<std::int64_t>(seconds * 1e9);
   while (MonotonicNs() < end) capture.Poll();
   recorder.stop();
   recorder.destroy();
-  const long frames = static_cast<long>(capture.status(0).frames - first);
-  done(frames);
-  return frames;
+  done(static_cast<long>(capture.status(0).frames - first));
 }
 
 }  // namespace
@@ -97,13 +94,12 @@ RecordSummary RecordOni(const RigCalibration& rig, const CaptureOptions& capture
         const ssize_t written = write(fd, &frames, sizeof(frames));
         _exit(written == sizeof(frames) && frames >= 0 ? 0 : 1);
       };
-      long frames = -1;
       try {
-        frames = RecordOne(rig.cameras[c], capture_options, child.file, options.seconds, answer);
+        RecordOne(rig.cameras[c], capture_options, child.file, options.seconds, answer);
       } catch (const std::exception& e) {
         std::fprintf(stderr, "record: %s: %s\n", rig.cameras[c].name.c_str(), e.what());
       }
-      answer(frames);
+      answer(-1);  // RecordOne threw before answering
     }
     close(fds[1]);
     child.pipe_fd = fds[0];

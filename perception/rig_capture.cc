@@ -234,11 +234,11 @@ void RigCapture::Close(Camera* cam) {
 void RigCapture::UpdateHealth(Camera* cam, std::int64_t now) {
   CameraStatus& s = cam->status;
   const std::int64_t period_ns = 1000000000 / std::max(1, options_.fps);
+  const std::int64_t frozen_limit = options_.frozen_periods * period_ns;
   const std::int64_t silence_limit =
       s.health == CameraHealth::kStarting
-          ? std::max<std::int64_t>(options_.frozen_periods * period_ns,
-                                   std::int64_t{options_.first_frame_timeout_ms} * 1000000)
-          : options_.frozen_periods * period_ns;
+          ? std::max(frozen_limit, std::int64_t{options_.first_frame_timeout_ms} * 1000000)
+          : frozen_limit;
   if (cam->streaming) {
     if (now - cam->last_frame_ns > silence_limit) {
       SetHealth(cam, s.frames == 0 ? CameraHealth::kMissing : CameraHealth::kFrozen, now,
