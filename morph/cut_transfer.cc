@@ -1,5 +1,6 @@
 #include "morph/cut_transfer.h"
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
@@ -137,14 +138,17 @@ struct BandSlide {
 // scale about the line's centroids (rest @p extent.centre, target @p target_centre), then
 // matched to the nearest template band vertex, point to plane, under the model
 //   p~ = c + (k u - delta) n + h w + a e1 + b e2,   u = n.(p - c),  w = (p - c) - u n,
-// with n the cut's normal and e1, e2 across it: a shift delta along the cut (prior
-// N(0, slide_sigma^2): the morph's placement), stretches k along it and h across it (priors
-// N(1, stretch_sigma^2)) and a sideways shift. Linear in the unknowns, so each round is a 5
-// by 5 solve; pairs beyond 3 median residuals are left out. Each plane point averages
-// @p shared target points, so neighbouring residuals are not independent: the residual
-// variance is counted @p shared times, for the priors and the error. Returns where the cut
-// (u~ = 0) lies, u = delta / k, and its standard error, both in template units; empty when
-// too few points take part or the fit leaves its bounds.
+// with n the cut's normal and e1, e2 across it: a shift delta along the cut, stretches k
+// along it and h across it (priors N(1, stretch_sigma^2)) and a sideways shift. Linear in
+// the unknowns, so each round is a 5 by 5 solve; pairs beyond 3 median residuals are left
+// out. While the pairs are chosen the shift has the prior N(0, slide_sigma^2) (the morph's
+// placement), so a band that says little does not wander; the reading returned is what the
+// chosen pairs say without it, for TransferCuts to weigh against the other cuts'. Each
+// plane point averages @p shared target points, so neighbouring residuals are not
+// independent: the residual variance is counted @p shared times, for the priors and the
+// error. Returns where the cut (u~ = 0) lies, u = delta / k, and its standard error, both in
+// template units; empty when too few points take part, the fit leaves its bounds or the
+// band fixes no shift.
 std::optional<BandSlide> FitBandSlide(
     const io::CutAnnotation& cut, const LineExtent& extent, const io::TriangleMesh& rest,
     const Eigen::Matrix3Xd& rest_normals, const Eigen::Matrix3d& turn, double scale,
@@ -187,6 +191,7 @@ std::optional<BandSlide> FitBandSlide(
   std::vector<Vector5d> rows(points.size());
   std::vector<double> rhs(points.size()), residual(points.size());
   Matrix5d information = Matrix5d::Identity();
+  Vector5d rhs_sum = Vector5d::Zero();
   double variance = 0.0;
   for (int round = 0; round < kRounds; ++round) {
     for (std::size_t j = 0; j < points.size(); ++j) {
@@ -227,13 +232,75 @@ std::optional<BandSlide> FitBandSlide(
     A(0, 0) += variance / (slide_sigma * slide_sigma);
     x = A.ldlt().solve(b);
     information = A;
+    rhs_sum = b;
   }
   if (!x.allFinite() || std::abs(x(1) - 1.0) > kMaxStretch || std::abs(x(2) - 1.0) > kMaxStretch)
     return std::nullopt;
-  const double along = x(0) / x(1);
-  if (std::abs(along) > 0.5 * band) return std::nullopt;
-  const double error = std::sqrt(variance * information.inverse()(0, 0)) / x(1);
+  // The prior chose which pairs count; the reading itself is what they say without it.
+  information(0, 0) -= variance / (slide_sigma * slide_sigma);
+  const Eigen::LDLT<Matrix5d> ldlt(information);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return std::nullopt;
+  const Vector5d reading = ldlt.solve(rhs_sum);
+  const double spread = ldlt.solve(Vector5d::Unit(0))(0);
+  if (!reading.allFinite() || !(spread > 0) || reading(1) <= 0) return std::nullopt;
+  const double along = reading(0) / reading(1);
+  const double error = std::sqrt(variance * spread) / reading(1);
+  if (std::abs(along) > 0.5 * band || error > band) return std::nullopt;
   return BandSlide{.along = along, .error = error};
+}
+
+// What TransferCuts learns of one cut before the cuts are placed together.
+struct CutReading {
+  LineExtent extent;
+  bool turned = false;            // the plane's normal came from the normals' turn
+  double scale = 0.0;             // the morph's scale about the band (0: no band fit possible)
+  std::optional<BandSlide> band;  // the band's own reading, template units
+};
+
+// The slides of all cuts from their band readings (template units): the posterior mean and
+// standard deviation under a zero-mean Gaussian prior with covariance
+//   K_ij = sigma^2 exp(-(d_ij / length)^2) n_i.n_j,
+// d_ij the distance between the cuts' line centroids and n their expert normals, and each
+// reading's variance its standard error squared plus model_error squared. Cuts without a
+// reading get what the others say of them; with no reading anywhere every slide is 0.
+void PlaceTogether(const io::Annotations& annotations, const std::vector<CutReading>& readings,
+                   double sigma, double length, double model_error, Eigen::VectorXd* mean,
+                   Eigen::VectorXd* deviation) {
+  const Eigen::Index n = static_cast<Eigen::Index>(readings.size());
+  Eigen::MatrixXd K(n, n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    for (Eigen::Index j = 0; j < n; ++j) {
+      const double d = (readings[i].extent.centre - readings[j].extent.centre).norm();
+      const double correlation = i == j       ? 1.0
+                                 : length > 0 ? std::exp(-(d / length) * (d / length))
+                                              : 0.0;
+      K(i, j) = sigma * sigma * correlation *
+                annotations.cuts[i].plane.normal.dot(annotations.cuts[j].plane.normal);
+    }
+  }
+  std::vector<Eigen::Index> read;
+  for (Eigen::Index i = 0; i < n; ++i)
+    if (readings[i].band) read.push_back(i);
+  mean->setZero(n);
+  *deviation = K.diagonal().cwiseSqrt();
+  if (read.empty()) return;
+  const Eigen::Index m = static_cast<Eigen::Index>(read.size());
+  Eigen::MatrixXd system(m, m), cross(n, m);
+  Eigen::VectorXd values(m);
+  for (Eigen::Index a = 0; a < m; ++a) {
+    const BandSlide& band = *readings[read[a]].band;
+    values(a) = band.along;
+    for (Eigen::Index b = 0; b < m; ++b) system(a, b) = K(read[a], read[b]);
+    system(a, a) += band.error * band.error + model_error * model_error;
+    cross.col(a) = K.col(read[a]);
+  }
+  // K is a covariance (a product of two), so with the readings' variances this is positive
+  // definite unless two cuts coincide and read exactly; then the morph's placement stands.
+  const Eigen::LLT<Eigen::MatrixXd> llt(system);
+  if (llt.info() != Eigen::Success) return;
+  *mean = cross * llt.solve(values);
+  const Eigen::MatrixXd explained = cross * llt.solve(cross.transpose());
+  *deviation = (K.diagonal() - explained.diagonal()).cwiseMax(0.0).cwiseSqrt();
 }
 
 }  // namespace
@@ -246,7 +313,8 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
                                          const CutTransferOptions& options, double noise) {
   VB_DEMAND(rest.num_vertices() == morphed.num_vertices() && target.cols() > 0 &&
             target_normals.cols() == target.cols() && size > 0 && noise >= 0 &&
-            options.slide_band_noise > 0);
+            options.slide_band_noise > 0 && options.slide_sigma > 0 &&
+            options.slide_correlation_length >= 0 && options.slide_model_error >= 0);
   const double template_size = io::BoundingBoxDiagonal(rest.V);
   const double slide_band =
       options.slide_band * std::sqrt(std::max(1.0, noise / options.slide_band_noise));
@@ -261,9 +329,12 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
   std::vector<int> found;
   std::vector<double> distances;
   std::vector<TransferredCut> out;
+  std::vector<CutReading> readings;
   for (const io::CutAnnotation& cut : annotations.cuts) {
     TransferredCut t;
+    CutReading reading;
     t.name = cut.name;
+    reading.extent = ExtentOf(cut, rest);
     int seen = 0;
     for (const io::SurfacePoint& sp : cut.line) {
       const Eigen::Vector3d p = io::Evaluate(morphed, sp);
@@ -290,7 +361,7 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
     t.coverage = cut.line.empty() ? 0.0 : static_cast<double>(seen) / cut.line.size();
     t.gap = seen ? t.gap / seen : 0.0;
     if (t.line.size() >= 3) {
-      const LineExtent extent = ExtentOf(cut, rest);
+      const LineExtent& extent = reading.extent;
       t.plane = FitPlane(t.line);
       double sum = 0.0;
       for (const Eigen::Vector3d& p : t.line) sum += std::pow(t.plane.SignedDistance(p), 2);
@@ -302,38 +373,58 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
                             options.min_band_vertices)) {
           t.plane.normal = (*turn * cut.plane.normal).normalized();
           t.oriented_by_normals = true;
+          reading.turned = true;
           if (slide_band > 0) {
             const double band = slide_band * template_size;
-            const double scale = BandScale(cut, extent, rest, morphed, band);
+            reading.scale = BandScale(cut, extent, rest, morphed, band);
             if (plane_points.cols() == 0) {
               plane_points =
                   PlanePoints(target, target_normals, index, options.slide_plane_neighbours,
                               options.slide_plane_radius * size, true);
             }
-            const std::optional<BandSlide> fit =
-                scale > 0
-                    ? FitBandSlide(cut, extent, rest, rest_normals, *turn, scale, t.plane.point,
-                                   plane_points, band, options.slide_margin * template_size,
-                                   options.slide_stretch_sigma, options.slide_sigma * template_size,
-                                   options.slide_plane_neighbours)
-                    : std::nullopt;
-            if (fit) {
-              t.slide = scale * fit->along;
-              t.slide_error = scale * fit->error;
-              t.slide_band = slide_band * size;
-              t.plane.point += t.slide * t.plane.normal;
+            if (reading.scale > 0) {
+              reading.band =
+                  FitBandSlide(cut, extent, rest, rest_normals, *turn, reading.scale, t.plane.point,
+                               plane_points, band, options.slide_margin * template_size,
+                               options.slide_stretch_sigma, options.slide_sigma * template_size,
+                               options.slide_plane_neighbours);
+            }
+            if (reading.band) {
+              t.band_slide = reading.scale * reading.band->along;
+              t.band_slide_error = reading.scale * reading.band->error;
             }
           }
         }
       }
-      const Eigen::Vector3d towards =
-          TowardsPartBefore(cut, extent, rest, morphed, options.side_band * template_size);
-      if (towards.dot(t.plane.normal) < 0) t.plane.normal = -t.plane.normal;
-      const double fit = t.fit_rms / (options.fit_scale * size);
-      const double gap = t.gap / (options.gap_scale * size);
-      t.confidence = t.coverage / (1.0 + fit * fit) / (1.0 + gap * gap);
     }
     out.push_back(std::move(t));
+    readings.push_back(std::move(reading));
+  }
+
+  Eigen::VectorXd slide, slide_deviation;
+  PlaceTogether(annotations, readings, options.slide_sigma * template_size,
+                options.slide_correlation_length * template_size,
+                options.slide_model_error * template_size, &slide, &slide_deviation);
+  const bool any_band = std::any_of(readings.begin(), readings.end(),
+                                    [](const CutReading& r) { return r.band.has_value(); });
+  for (std::size_t c = 0; c < out.size(); ++c) {
+    TransferredCut& t = out[c];
+    if (t.line.size() < 3) continue;
+    const io::CutAnnotation& cut = annotations.cuts[c];
+    const CutReading& reading = readings[c];
+    if (any_band && reading.turned && reading.scale > 0) {
+      const Eigen::Index i = static_cast<Eigen::Index>(c);
+      t.slide = reading.scale * slide(i);
+      t.slide_error = reading.scale * slide_deviation(i);
+      t.slide_band = slide_band * size;
+      t.plane.point += t.slide * t.plane.normal;
+    }
+    const Eigen::Vector3d towards =
+        TowardsPartBefore(cut, reading.extent, rest, morphed, options.side_band * template_size);
+    if (towards.dot(t.plane.normal) < 0) t.plane.normal = -t.plane.normal;
+    const double fit = t.fit_rms / (options.fit_scale * size);
+    const double gap = t.gap / (options.gap_scale * size);
+    t.confidence = t.coverage / (1.0 + fit * fit) / (1.0 + gap * gap);
   }
   return out;
 }

@@ -119,6 +119,8 @@ void WriteCutsReport(const std::filesystem::path& path, const io::Annotations& a
          {"slide", c.slide},
          {"slide_error", c.slide_error},
          {"slide_band", c.slide_band},
+         {"band_slide", c.band_slide},
+         {"band_slide_error", c.band_slide_error},
          {"coverage", c.coverage},
          {"gap", c.gap},
          {"confidence", c.confidence},

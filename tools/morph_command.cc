@@ -113,10 +113,11 @@ int RunMorphCommand(const MorphCommandOptions& options) {
     const std::vector<io::PartMeasure>& parts = result.parts;
     for (const morph::TransferredCut& c : cuts) {
       std::printf(
-          "cut %-14s normal (%+.3f %+.3f %+.3f) fit rms %.4g slide %+.4g (+/- %.2g, band %.3g) "
-          "coverage %.2f confidence %.2f\n",
+          "cut %-14s normal (%+.3f %+.3f %+.3f) fit rms %.4g slide %+.4g (+/- %.2g; band %.3g read "
+          "%+.4g +/- %.2g) coverage %.2f confidence %.2f\n",
           c.name.c_str(), c.plane.normal.x(), c.plane.normal.y(), c.plane.normal.z(), c.fit_rms,
-          c.slide, c.slide_error, c.slide_band, c.coverage, c.confidence);
+          c.slide, c.slide_error, c.slide_band, c.band_slide, c.band_slide_error, c.coverage,
+          c.confidence);
     }
     for (std::size_t k = 0; k < parts.size(); ++k) {
       std::printf("part %-10s volume %.6g area %.6g\n", annotations.parts[k].c_str(),
