@@ -252,8 +252,9 @@ std::optional<BandSlide> FitBandSlide(
 // What TransferCuts learns of one cut before the cuts are placed together.
 struct CutReading {
   LineExtent extent;
-  bool turned = false;            // the plane's normal came from the normals' turn
-  double scale = 0.0;             // the morph's scale about the band (0: no band fit possible)
+  // The morph's scale about the band; 0 when no band fit was possible (no normals' turn,
+  // or no band), and then the cut is not moved.
+  double scale = 0.0;
   std::optional<BandSlide> band;  // the band's own reading, template units
 };
 
@@ -262,8 +263,9 @@ struct CutReading {
 //   K_ij = sigma^2 exp(-(d_ij / length)^2) n_i.n_j,
 // d_ij the distance between the cuts' line centroids and n their expert normals, and each
 // reading's variance its standard error squared plus model_error squared. Cuts without a
-// reading get what the others say of them; with no reading anywhere every slide is 0.
-void PlaceTogether(const io::Annotations& annotations, const std::vector<CutReading>& readings,
+// reading get what the others say of them. Returns false, every slide 0, when no cut has a
+// reading.
+bool PlaceTogether(const io::Annotations& annotations, const std::vector<CutReading>& readings,
                    double sigma, double length, double model_error, Eigen::VectorXd* mean,
                    Eigen::VectorXd* deviation) {
   const Eigen::Index n = static_cast<Eigen::Index>(readings.size());
@@ -283,7 +285,7 @@ void PlaceTogether(const io::Annotations& annotations, const std::vector<CutRead
     if (readings[i].band) read.push_back(i);
   mean->setZero(n);
   *deviation = K.diagonal().cwiseSqrt();
-  if (read.empty()) return;
+  if (read.empty()) return false;
   const Eigen::Index m = static_cast<Eigen::Index>(read.size());
   Eigen::MatrixXd system(m, m), cross(n, m);
   Eigen::VectorXd values(m);
@@ -297,10 +299,11 @@ void PlaceTogether(const io::Annotations& annotations, const std::vector<CutRead
   // K is a covariance (a product of two), so with the readings' variances this is positive
   // definite unless two cuts coincide and read exactly; then the morph's placement stands.
   const Eigen::LLT<Eigen::MatrixXd> llt(system);
-  if (llt.info() != Eigen::Success) return;
+  if (llt.info() != Eigen::Success) return true;
   *mean = cross * llt.solve(values);
   const Eigen::MatrixXd explained = cross * llt.solve(cross.transpose());
   *deviation = (K.diagonal() - explained.diagonal()).cwiseMax(0.0).cwiseSqrt();
+  return true;
 }
 
 }  // namespace
@@ -373,7 +376,6 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
                             options.min_band_vertices)) {
           t.plane.normal = (*turn * cut.plane.normal).normalized();
           t.oriented_by_normals = true;
-          reading.turned = true;
           if (slide_band > 0) {
             const double band = slide_band * template_size;
             reading.scale = BandScale(cut, extent, rest, morphed, band);
@@ -402,17 +404,16 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
   }
 
   Eigen::VectorXd slide, slide_deviation;
-  PlaceTogether(annotations, readings, options.slide_sigma * template_size,
-                options.slide_correlation_length * template_size,
-                options.slide_model_error * template_size, &slide, &slide_deviation);
-  const bool any_band = std::any_of(readings.begin(), readings.end(),
-                                    [](const CutReading& r) { return r.band.has_value(); });
+  const bool any_band =
+      PlaceTogether(annotations, readings, options.slide_sigma * template_size,
+                    options.slide_correlation_length * template_size,
+                    options.slide_model_error * template_size, &slide, &slide_deviation);
   for (std::size_t c = 0; c < out.size(); ++c) {
     TransferredCut& t = out[c];
     if (t.line.size() < 3) continue;
     const io::CutAnnotation& cut = annotations.cuts[c];
     const CutReading& reading = readings[c];
-    if (any_band && reading.turned && reading.scale > 0) {
+    if (any_band && reading.scale > 0) {
       const Eigen::Index i = static_cast<Eigen::Index>(c);
       t.slide = reading.scale * slide(i);
       t.slide_error = reading.scale * slide_deviation(i);
