@@ -143,17 +143,21 @@ struct BandSlide {
 // the unknowns, so each round is a 5 by 5 solve; pairs beyond 3 median residuals are left
 // out. While the pairs are chosen the shift has the prior N(0, slide_sigma^2) (the morph's
 // placement), so a band that says little does not wander; the reading returned is what the
-// chosen pairs say without it, for TransferCuts to weigh against the other cuts'. Each
-// plane point averages @p shared target points, so neighbouring residuals are not
-// independent: the residual variance is counted @p shared times, for the priors and the
-// error. Returns where the cut (u~ = 0) lies, u = delta / k, and its standard error, both in
-// template units; empty when too few points take part, the fit leaves its bounds or the
+// chosen pairs say without it, for TransferCuts to weigh against the other cuts'.
+// Neighbouring plane points share target points, so their residuals are not independent:
+// the residual variance is counted @p shared times, for the priors and the error. A plane
+// point paired with band vertex v is taken to lie @p outward(v) inside the surface (empty:
+// nowhere). Returns where the cut (u~ = 0) lies, u = delta / k, and its standard error, both
+// in template units; empty when too few points take part, the fit leaves its bounds or the
 // band fixes no shift.
-std::optional<BandSlide> FitBandSlide(
-    const io::CutAnnotation& cut, const LineExtent& extent, const io::TriangleMesh& rest,
-    const Eigen::Matrix3Xd& rest_normals, const Eigen::Matrix3d& turn, double scale,
-    const Eigen::Vector3d& target_centre, const Eigen::Matrix3Xd& plane_points, double band,
-    double margin, double stretch_sigma, double slide_sigma, int shared) {
+std::optional<BandSlide> FitBandSlide(const io::CutAnnotation& cut, const LineExtent& extent,
+                                      const io::TriangleMesh& rest,
+                                      const Eigen::Matrix3Xd& rest_normals,
+                                      const Eigen::Matrix3d& turn, double scale,
+                                      const Eigen::Vector3d& target_centre,
+                                      const Eigen::Matrix3Xd& plane_points, double band,
+                                      double margin, double stretch_sigma, double slide_sigma,
+                                      int shared, const Eigen::VectorXd& outward) {
   constexpr int kMinPoints = 50;
   constexpr int kRounds = 15;
   // Beyond this the fit has latched onto something else. Over 1,320 fits (bench full, seeds 1
@@ -178,9 +182,12 @@ std::optional<BandSlide> FitBandSlide(
     return std::nullopt;
   Eigen::Matrix3Xd surface(3, static_cast<Eigen::Index>(band_vertices.size()));
   Eigen::Matrix3Xd surface_normals(3, surface.cols());
+  Eigen::VectorXd surface_outward = Eigen::VectorXd::Zero(surface.cols());
   for (std::size_t i = 0; i < band_vertices.size(); ++i) {
     surface.col(static_cast<Eigen::Index>(i)) = rest.V.col(band_vertices[i]);
     surface_normals.col(static_cast<Eigen::Index>(i)) = rest_normals.col(band_vertices[i]);
+    if (outward.size() != 0)
+      surface_outward(static_cast<Eigen::Index>(i)) = outward(band_vertices[i]);
   }
   const PointIndex surface_index(surface);
 
@@ -203,8 +210,8 @@ std::optional<BandSlide> FitBandSlide(
       const int k = surface_index.Nearest(moved);
       const Eigen::Vector3d normal = surface_normals.col(k);
       rows[j] = J.transpose() * normal;
-      rhs[j] = normal.dot(surface.col(k) - c);
-      residual[j] = std::abs(normal.dot(moved - surface.col(k)));
+      rhs[j] = normal.dot(surface.col(k) - c) - surface_outward(k);
+      residual[j] = std::abs(normal.dot(moved - surface.col(k)) + surface_outward(k));
     }
     std::vector<double> sorted = residual;
     std::nth_element(sorted.begin(),
@@ -321,6 +328,12 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
   const double template_size = io::BoundingBoxDiagonal(rest.V);
   const double slide_band =
       options.slide_band * std::sqrt(std::max(1.0, noise / options.slide_band_noise));
+  // Noisier targets average more points per plane point (see max_slide_plane_neighbours).
+  const double relative_noise = noise / options.slide_band_noise;
+  const int fewest = options.slide_plane_neighbours;
+  const int plane_neighbours = static_cast<int>(std::lround(
+      std::clamp(fewest * relative_noise * relative_noise, static_cast<double>(fewest),
+                 static_cast<double>(std::max(fewest, options.max_slide_plane_neighbours)))));
   const PointIndex index(target);
   const double radius = options.support_radius * size;
   Eigen::Matrix3Xd computed_rest_normals, computed_morphed_normals;  // for meshes without
@@ -329,6 +342,14 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
   const Eigen::Matrix3Xd& morphed_normals =
       morphed.has_normals() ? morphed.N : (computed_morphed_normals = io::VertexNormals(morphed));
   Eigen::Matrix3Xd plane_points;  // of the target, made when the first band fit needs them
+  // How far out along the normal a noisy target's plane point paired with each template
+  // vertex is moved, template units (see unbias_plane_points); empty on a clean target.
+  Eigen::VectorXd outward;
+  if (options.unbias_plane_points && noise > 0) {
+    const double sigma = noise * template_size;
+    outward =
+        (io::CurvatureSums(rest, rest_normals) * (sigma * sigma)).cwiseMax(-sigma).cwiseMin(sigma);
+  }
   std::vector<int> found;
   std::vector<double> distances;
   std::vector<TransferredCut> out;
@@ -380,16 +401,15 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
             const double band = slide_band * template_size;
             reading.scale = BandScale(cut, extent, rest, morphed, band);
             if (plane_points.cols() == 0) {
-              plane_points =
-                  PlanePoints(target, target_normals, index, options.slide_plane_neighbours,
-                              options.slide_plane_radius * size, true);
+              plane_points = PlanePoints(target, target_normals, index, plane_neighbours,
+                                         options.slide_plane_radius * size, true);
             }
             if (reading.scale > 0) {
               reading.band =
                   FitBandSlide(cut, extent, rest, rest_normals, *turn, reading.scale, t.plane.point,
                                plane_points, band, options.slide_margin * template_size,
                                options.slide_stretch_sigma, options.slide_sigma * template_size,
-                               options.slide_plane_neighbours);
+                               options.slide_plane_neighbours, outward);
             }
             if (reading.band) {
               t.band_slide = reading.scale * reading.band->along;

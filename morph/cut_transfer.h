@@ -74,6 +74,28 @@ struct CutTransferOptions {
   /// slide_plane_radius, so sensor noise averages out before the fit.
   int slide_plane_neighbours = 20;
   double slide_plane_radius = 0.03;
+  /// On targets noisier than slide_band_noise the plane points average more target points,
+  /// slide_plane_neighbours x (noise / slide_band_noise)^2, up to this many, as the dense
+  /// stage's do (DenseOptions::max_surface_neighbours). Through 20-point plane points at
+  /// sigma 16 mm the bands read the cut 4-8 mm off on the true morph, all one way (as if the
+  /// body were thinner: a tapered band reads that as a shift). The residuals still count one
+  /// in slide_plane_neighbours as independent: counting one in as many as are averaged made
+  /// the readings' errors 1.2-1.7 times their spread on the true morph, and the plane stayed
+  /// near the morph's (clouds at sigma 16 on seeds 1 / 2 / 3: 4.39 / 5.29 / 5.45 mm, against
+  /// 3.75 / 5.30 / 5.31). Measured with unbias_plane_points on (`bench full --pairs 10
+  /// --sigmas-mm 0,2,4,8,16 --clouds --rig`, seeds 1 / 2 / 3), cut distance at sigma 8 / 16 mm:
+  /// meshes 2.07 / 2.94 -> 2.13 / 2.76, 2.63 / 4.54 -> 2.31 / 4.00, 3.09 / 4.17 -> 2.86 / 3.96;
+  /// clouds 2.33 / 4.51 -> 2.65 / 3.75, 3.43 / 5.48 -> 3.07 / 5.30, 3.84 / 5.75 -> 3.92 / 5.31;
+  /// sigma <= 4 and the rig within 0.06 mm.
+  int max_slide_plane_neighbours = 64;
+  /// Each plane point is taken as lying sigma^2 (k1 + k2) inside the surface, sigma the
+  /// target's noise and k1 + k2 the template's curvature sum at the paired vertex (at most
+  /// sigma), as in DenseOptions::unbias_plane_points: a centroid on a noisy convex surface
+  /// sits that far in. Measured as above, cut distance at sigma 4 mm on seeds 1 / 2 / 3:
+  /// meshes 1.69 / 1.96 / 2.39 -> 1.68 / 1.91 / 2.31, clouds 1.82 / 2.24 / 2.99 -> 1.79 /
+  /// 2.10 / 2.83 (the rack / shoulder band gains most); sigma 0 unchanged, sigma 16 within
+  /// 0.07 mm.
+  bool unbias_plane_points = true;
 };
 
 /// One annotated cut carried onto a target.

@@ -572,7 +572,8 @@ TEST_F(DenseAlignmentTest, TheBandWidensWithTheNoise) {
     SCOPED_TRACE(told[c].name);
     EXPECT_NEAR(untold[c].slide_band, options.slide_band * size, 1e-12 * size);
     EXPECT_EQ(below[c].slide_band, untold[c].slide_band);
-    EXPECT_EQ(below[c].slide, untold[c].slide);
+    // Only the plane points' curvature offset, sigma^2 (k1 + k2), tells them apart.
+    EXPECT_NEAR(below[c].slide, untold[c].slide, 1e-5 * size);
     EXPECT_NEAR(told[c].slide_band,
                 options.slide_band * std::sqrt(noise / options.slide_band_noise) * size,
                 1e-12 * size);
@@ -582,6 +583,51 @@ TEST_F(DenseAlignmentTest, TheBandWidensWithTheNoise) {
     EXPECT_LT(std::abs(told[c].slide), 0.75 * options.slide_sigma * size);
     EXPECT_GT(told[c].slide_error, 0.8 * options.slide_sigma * size);
   }
+}
+
+TEST_F(DenseAlignmentTest, NoisyBandsReadTheCutNearerWhereItIs) {
+  // The true morph of ten posed carcasses under noise of 1.3 % of the size (16 mm on a
+  // lamb): every cut is where the morph has it, so each band's reading is its error. Plane
+  // points of 20 neighbours sit inside a convex surface and stay noisy, and on a tapered band
+  // both read as a shift; averaging as many points as the noise asks (up to
+  // max_slide_plane_neighbours) and adding back sigma^2 (k1 + k2) take part of that away.
+  // Measured: RMS reading 0.0190 of the size before, 0.0153 now (the loin / rack band, whose
+  // profile says least, 0.033 -> 0.026).
+  const io::TriangleMesh& mesh = carcass_->mesh;
+  const double template_size = io::BoundingBoxDiagonal(mesh.V);
+  const double noise = 0.013;
+  CutTransferOptions before;
+  before.max_slide_plane_neighbours = before.slide_plane_neighbours;
+  before.unbias_plane_points = false;
+  const CutTransferOptions now;
+  double squares_before = 0.0, squares_now = 0.0;
+  int readings_before = 0, readings_now = 0;
+  perception::PoseOptions pose_options;
+  pose_options.arbitrary_orientation = false;
+  for (std::uint64_t seed = 0; seed < 10; ++seed) {
+    const perception::CarcassPose pose = perception::SampleCarcassPose(2000 + seed, pose_options);
+    const perception::PosedCarcass truth = perception::PoseCarcass(*carcass_, pose);
+    const double size = template_size * pose.global_scale;
+    const io::TriangleMesh noisy = perception::AddNormalNoise(truth.mesh, noise * size, 100 + seed);
+    const Eigen::Matrix3Xd normals = io::VertexNormals(noisy);
+    for (const TransferredCut& c : TransferCuts(carcass_->annotations, mesh, truth.mesh, noisy.V,
+                                                normals, size, before, noise)) {
+      if (c.band_slide_error == 0.0) continue;  // no reading
+      squares_before += std::pow(c.band_slide / size, 2);
+      ++readings_before;
+    }
+    for (const TransferredCut& c : TransferCuts(carcass_->annotations, mesh, truth.mesh, noisy.V,
+                                                normals, size, now, noise)) {
+      if (c.band_slide_error == 0.0) continue;
+      squares_now += std::pow(c.band_slide / size, 2);
+      ++readings_now;
+    }
+  }
+  ASSERT_GE(readings_before, 25);
+  ASSERT_GE(readings_now, 25);
+  const double rms_before = std::sqrt(squares_before / readings_before);
+  const double rms_now = std::sqrt(squares_now / readings_now);
+  EXPECT_LT(rms_now, 0.85 * rms_before);
 }
 
 TEST_F(DenseAlignmentTest, CutPlanesFallBackToTheLineWhenNormalsFixNoRotation) {
