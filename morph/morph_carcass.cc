@@ -33,7 +33,10 @@ CarcassResult MorphFromCoarse(const TemplateModel& model, const io::Annotations&
                               r.dense.target_normals, r.coarse.template_to_target.scale,
                               options.cuts, r.dense.noise);
         for (TransferredCut& cut : r.cuts) cut.confidence *= r.check.confidence;
-        if (!r.cuts.empty()) r.parts = CutParts(r.dense.mesh, r.cuts);
+        if (!r.cuts.empty()) {
+          r.parts = CutTargetParts(r.dense.mesh, r.cuts, r.dense.target,
+                                   r.coarse.template_to_target.scale, options.parts);
+        }
         r.cuts_seconds = Since(phase);
         r.ok = true;
       }

@@ -18,6 +18,7 @@ struct MorphOptions {
   CoarseOptions coarse;
   DenseOptions dense;
   CutTransferOptions cuts;
+  PartVolumeOptions parts;
   MorphCheckOptions check;
 };
 
