@@ -138,10 +138,12 @@ struct BandSlide {
 // in the template's frame: each point p is mapped back through the morph's local turn and
 // scale about the line's centroids (rest @p extent.centre, target @p target_centre), then
 // matched to the nearest template band vertex, point to plane, under the model
-//   p~ = c + (k u - delta) n + h w + a e1 + b e2,   u = n.(p - c),  w = (p - c) - u n,
+//   p~ = c + (k u - delta) n + h w + a e1 + b e2 + t1 e1 x (p - c) + t2 e2 x (p - c),
+//   u = n.(p - c),  w = (p - c) - u n,
 // with n the cut's normal and e1, e2 across it: a shift delta along the cut, stretches k
-// along it and h across it (priors N(1, stretch_sigma^2)) and a sideways shift. Linear in
-// the unknowns, so each round is a 5 by 5 solve; pairs beyond 3 median residuals are left
+// along it and h across it (priors N(1, stretch_sigma^2)), a sideways shift and a small
+// tilt about either axis across the cut (priors N(0, tilt_sigma^2)). Linear in the
+// unknowns, so each round is a 7 by 7 solve; pairs beyond 3 median residuals are left
 // out. While the pairs are chosen the shift has the prior N(0, slide_sigma^2) (the morph's
 // placement), so a band that says little does not wander; the reading returned is what the
 // chosen pairs say without it, for TransferCuts to weigh against the other cuts'.
@@ -158,7 +160,8 @@ std::optional<BandSlide> FitBandSlide(const io::CutAnnotation& cut, const LineEx
                                       const Eigen::Vector3d& target_centre,
                                       const Eigen::Matrix3Xd& plane_points, double band,
                                       double margin, double stretch_sigma, double slide_sigma,
-                                      int shared, const Eigen::VectorXd& outward) {
+                                      double tilt_sigma, int shared,
+                                      const Eigen::VectorXd& outward) {
   constexpr int kMinPoints = 50;
   constexpr int kRounds = 15;
   // Beyond this the fit has latched onto something else. Over 1,320 fits (bench full, seeds 1
@@ -192,21 +195,21 @@ std::optional<BandSlide> FitBandSlide(const io::CutAnnotation& cut, const LineEx
   }
   const PointIndex surface_index(surface);
 
-  using Vector5d = Eigen::Matrix<double, 5, 1>;
-  using Matrix5d = Eigen::Matrix<double, 5, 5>;
-  Vector5d x;
-  x << 0.0, 1.0, 1.0, 0.0, 0.0;  // delta, k, h, a, b
-  std::vector<Vector5d> rows(points.size());
+  using Vector7d = Eigen::Matrix<double, 7, 1>;
+  using Matrix7d = Eigen::Matrix<double, 7, 7>;
+  Vector7d x;
+  x << 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0;  // delta, k, h, a, b, tilts about e1, e2
+  std::vector<Vector7d> rows(points.size());
   std::vector<double> rhs(points.size()), residual(points.size());
-  Matrix5d information = Matrix5d::Identity();
-  Vector5d rhs_sum = Vector5d::Zero();
+  Matrix7d information = Matrix7d::Identity();
+  Vector7d rhs_sum = Vector7d::Zero();
   double variance = 0.0;
   for (int round = 0; round < kRounds; ++round) {
     for (std::size_t j = 0; j < points.size(); ++j) {
       const Eigen::Vector3d d = points[j] - c;
       const double u = n.dot(d);
-      Eigen::Matrix<double, 3, 5> J;
-      J << -n, u * n, d - u * n, e1, e2;
+      Eigen::Matrix<double, 3, 7> J;
+      J << -n, u * n, d - u * n, e1, e2, e1.cross(d), e2.cross(d);
       const Eigen::Vector3d moved = c + J * x;
       const int k = surface_index.Nearest(moved);
       const Eigen::Vector3d normal = surface_normals.col(k);
@@ -218,8 +221,8 @@ std::optional<BandSlide> FitBandSlide(const io::CutAnnotation& cut, const LineEx
     std::nth_element(sorted.begin(),
                      sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2), sorted.end());
     const double cutoff = 3.0 * std::max(sorted[sorted.size() / 2], 1e-12);
-    Matrix5d A = Matrix5d::Zero();
-    Vector5d b = Vector5d::Zero();
+    Matrix7d A = Matrix7d::Zero();
+    Vector7d b = Vector7d::Zero();
     double sum_squares = 0.0;
     int used = 0;
     for (std::size_t j = 0; j < points.size(); ++j) {
@@ -238,6 +241,9 @@ std::optional<BandSlide> FitBandSlide(const io::CutAnnotation& cut, const LineEx
     A(2, 2) += prior;
     b(2) += prior;
     A(0, 0) += variance / (slide_sigma * slide_sigma);
+    const double tilt_prior = variance / (tilt_sigma * tilt_sigma);
+    A(5, 5) += tilt_prior;
+    A(6, 6) += tilt_prior;
     x = A.ldlt().solve(b);
     information = A;
     rhs_sum = b;
@@ -246,10 +252,10 @@ std::optional<BandSlide> FitBandSlide(const io::CutAnnotation& cut, const LineEx
     return std::nullopt;
   // The prior chose which pairs count; the reading itself is what they say without it.
   information(0, 0) -= variance / (slide_sigma * slide_sigma);
-  const Eigen::LDLT<Matrix5d> ldlt(information);
+  const Eigen::LDLT<Matrix7d> ldlt(information);
   if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return std::nullopt;
-  const Vector5d reading = ldlt.solve(rhs_sum);
-  const double spread = ldlt.solve(Vector5d::Unit(0))(0);
+  const Vector7d reading = ldlt.solve(rhs_sum);
+  const double spread = ldlt.solve(Vector7d::Unit(0))(0);
   if (!reading.allFinite() || !(spread > 0) || reading(1) <= 0) return std::nullopt;
   const double along = reading(0) / reading(1);
   const double error = std::sqrt(variance * spread) / reading(1);
@@ -410,7 +416,7 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
                   FitBandSlide(cut, extent, rest, rest_normals, *turn, reading.scale, t.plane.point,
                                plane_points, band, options.slide_margin * template_size,
                                options.slide_stretch_sigma, options.slide_sigma * template_size,
-                               options.slide_plane_neighbours, outward);
+                               options.slide_tilt_sigma, options.slide_plane_neighbours, outward);
             }
             if (reading.band) {
               t.band_slide = reading.scale * reading.band->along;

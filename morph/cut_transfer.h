@@ -52,6 +52,16 @@ struct CutTransferOptions {
   /// Prior standard deviation of the band's stretch along and across the cut (relative):
   /// parts of a carcass differ from the template's by several percent, rarely by tens.
   double slide_stretch_sigma = 0.1;
+  /// Prior standard deviation (radians) of the band's tilt about the axes across the cut,
+  /// beyond the normals' turn. The turn is read from the normals within normal_band of the
+  /// cut; where the carcass bends within the wider slide band, an untilted piece can only
+  /// match it by a shift, which reads as the cut being elsewhere. Measured (`bench full
+  /// --pairs 10 --sigmas-mm 0,4,16 --clouds`, seeds 1 / 2 / 3), cut distance at sigma 0 / 4 /
+  /// 16 mm: meshes 1.02 / 1.62 / 2.76 -> 0.92 / 1.49 / 2.70, 1.04 / 1.92 / 4.00 -> 1.00 / 1.81 /
+  /// 3.73, 1.23 / 2.34 / 3.96 -> 1.08 / 2.30 / 3.86; clouds 1.63 / 1.78 / 3.75 -> 1.28 / 1.79 /
+  /// 3.74, 1.49 / 2.06 / 5.30 -> 1.08 / 2.04 / 5.07, 1.48 / 2.82 / 5.31 -> 1.20 / 2.40 / 5.00;
+  /// 0.05 gave the same within 0.13 mm.
+  double slide_tilt_sigma = 0.15;
   /// Prior standard deviation of the morph's slide along the body at a cut (fraction of the
   /// template's size): what the morph's own placement is good to. Over 120 lamb targets
   /// (bench full, seeds 1 and 2, sigma 0 / 4 / 16 mm, meshes and clouds) the slide ran 2-6 mm
