@@ -470,9 +470,9 @@ namespace {
 // nearest of the faces round v that p projects into, else along v's normal. Exact where the
 // closest point lies in v's one ring, which the nearest vertex's does on a mesh finer than
 // its curvature.
-double SignedDistanceNear(const io::TriangleMesh& mesh, const std::vector<int>& faces_of_v, int v,
-                          const Eigen::Vector3d& p) {
-  double distance = mesh.N.col(v).dot(p - mesh.V.col(v));
+double SignedDistanceNear(const io::TriangleMesh& mesh, const Eigen::Matrix3Xd& normals,
+                          const std::vector<int>& faces_of_v, int v, const Eigen::Vector3d& p) {
+  double distance = normals.col(v).dot(p - mesh.V.col(v));
   double nearest = std::numeric_limits<double>::infinity();
   for (int f : faces_of_v) {
     const Eigen::Vector3d a = mesh.V.col(mesh.F(0, f));
@@ -501,9 +501,12 @@ std::vector<io::PartMeasure> CutTargetParts(const io::TriangleMesh& morphed,
                                             const std::vector<TransferredCut>& cuts,
                                             const Eigen::Matrix3Xd& target, double size,
                                             const PartVolumeOptions& options) {
-  VB_DEMAND(morphed.has_normals() && size > 0 && options.max_offset > 0);
+  VB_DEMAND(size > 0 && options.max_offset > 0);
   std::vector<io::PartMeasure> parts = CutParts(morphed, cuts);
   if (parts.empty() || morphed.num_vertices() == 0) return parts;
+  Eigen::Matrix3Xd computed_normals;  // for a mesh without
+  const Eigen::Matrix3Xd& normals =
+      morphed.has_normals() ? morphed.N : (computed_normals = io::VertexNormals(morphed));
   std::vector<std::vector<int>> faces_of(static_cast<std::size_t>(morphed.num_vertices()));
   for (Eigen::Index f = 0; f < morphed.F.cols(); ++f)
     for (Eigen::Index k = 0; k < 3; ++k)
@@ -515,7 +518,8 @@ std::vector<io::PartMeasure> CutTargetParts(const io::TriangleMesh& morphed,
   for (Eigen::Index j = 0; j < target.cols(); ++j) {
     const Eigen::Vector3d p = target.col(j);
     const int v = index.Nearest(p);
-    const double d = SignedDistanceNear(morphed, faces_of[static_cast<std::size_t>(v)], v, p);
+    const double d =
+        SignedDistanceNear(morphed, normals, faces_of[static_cast<std::size_t>(v)], v, p);
     if (!(std::abs(d) <= max_offset)) continue;
     // Part k lies on the negative side of cuts 0..k-1 and the positive side of cut k.
     std::size_t part = 0;

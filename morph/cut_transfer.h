@@ -189,7 +189,8 @@ struct PartVolumeOptions {
 /// more so on noisy targets, whose data term is weighted down), the target points lie inside
 /// or outside it by about that much all over the part; their mean averages the sensor noise
 /// away. The area is the morph's.
-/// @param[in] morphed the morphed template, target frame, with vertex normals.
+/// @param[in] morphed the morphed template, target frame (its vertex normals computed when
+/// it has none).
 /// @param[in] target 3 by N target points, same frame; @p size as TransferCuts'.
 std::vector<io::PartMeasure> CutTargetParts(const io::TriangleMesh& morphed,
                                             const std::vector<TransferredCut>& cuts,

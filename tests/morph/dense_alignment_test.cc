@@ -635,8 +635,7 @@ TEST(CutTargetPartsTest, TheTargetTellsAPartsVolumeWhereTheMorphStayedThinner) {
   // A unit sphere morph inside a carcass of radius 1.05, cut through the centre: each half's
   // volume is the larger sphere's, to first order in the gap, and points far from the morph
   // (a stray cluster) are not counted.
-  io::TriangleMesh morph = test::Sphere(1.0, 4);
-  morph.N = io::VertexNormals(morph);
+  const io::TriangleMesh morph = test::Sphere(1.0, 4);  // without normals: they are computed
   const double r = 1.05;
   const io::TriangleMesh carcass = test::Sphere(r, 5);
   Eigen::Matrix3Xd target(3, carcass.num_vertices() + 200);
