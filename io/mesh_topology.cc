@@ -39,6 +39,15 @@ std::string TopologyReport::Describe() const {
   return s;
 }
 
+std::vector<std::vector<int>> FacesOfVertices(const TriangleMesh& mesh) {
+  std::vector<std::vector<int>> faces(static_cast<std::size_t>(mesh.num_vertices()));
+  for (Eigen::Index f = 0; f < mesh.F.cols(); ++f) {
+    for (Eigen::Index k = 0; k < 3; ++k)
+      faces[static_cast<std::size_t>(mesh.F(k, f))].push_back(static_cast<int>(f));
+  }
+  return faces;
+}
+
 TopologyReport AnalyzeTopology(const TriangleMesh& mesh) {
   TopologyReport r;
   r.num_vertices = mesh.num_vertices();
@@ -96,11 +105,7 @@ TopologyReport AnalyzeTopology(const TriangleMesh& mesh) {
 
   // A vertex is manifold when its incident faces, linked through shared edges at the vertex,
   // form one group. Count groups per vertex with a union-find over face slots.
-  std::vector<std::vector<int>> faces_of_vertex(static_cast<std::size_t>(r.num_vertices));
-  for (int f = 0; f < r.num_faces; ++f) {
-    for (int k = 0; k < 3; ++k)
-      faces_of_vertex[static_cast<std::size_t>(mesh.F(k, f))].push_back(f);
-  }
+  const std::vector<std::vector<int>> faces_of_vertex = FacesOfVertices(mesh);
   std::sort(vertex_links.begin(), vertex_links.end());
   std::size_t link = 0;
   for (int v = 0; v < r.num_vertices; ++v) {

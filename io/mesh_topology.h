@@ -1,6 +1,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "io/triangle_mesh.h"
 
@@ -32,6 +33,10 @@ struct TopologyReport {
   /// One line naming every defect, for error messages.
   std::string Describe() const;
 };
+
+/// The faces round each vertex of @p mesh, in increasing order.
+/// @pre every index in mesh.F is in [0, #V).
+std::vector<std::vector<int>> FacesOfVertices(const TriangleMesh& mesh);
 
 /// Counts boundary, non-manifold and inconsistently oriented edges, loose vertices, vertex
 /// fans and components of @p mesh. O(F log F).

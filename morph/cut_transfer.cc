@@ -11,6 +11,7 @@
 
 #include "io/error.h"
 #include "io/mesh_measures.h"
+#include "io/mesh_topology.h"
 #include "io/surface_point.h"
 #include "morph/dense_association.h"
 #include "morph/feature_association.h"
@@ -333,14 +334,11 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
             options.slide_band_noise > 0 && options.slide_sigma > 0 &&
             options.slide_correlation_length >= 0 && options.slide_model_error >= 0);
   const double template_size = io::BoundingBoxDiagonal(rest.V);
-  const double slide_band =
-      options.slide_band * std::sqrt(std::max(1.0, noise / options.slide_band_noise));
-  // Noisier targets average more points per plane point (see max_slide_plane_neighbours).
   const double relative_noise = noise / options.slide_band_noise;
-  const int fewest = options.slide_plane_neighbours;
-  const int plane_neighbours = static_cast<int>(std::lround(
-      std::clamp(fewest * relative_noise * relative_noise, static_cast<double>(fewest),
-                 static_cast<double>(std::max(fewest, options.max_slide_plane_neighbours)))));
+  const double slide_band = options.slide_band * std::sqrt(std::max(1.0, relative_noise));
+  // Noisier targets average more points per plane point (see max_slide_plane_neighbours).
+  const int plane_neighbours = NeighboursForNoise(
+      options.slide_plane_neighbours, options.max_slide_plane_neighbours, relative_noise);
   const PointIndex index(target);
   const double radius = options.support_radius * size;
   Eigen::Matrix3Xd computed_rest_normals, computed_morphed_normals;  // for meshes without
@@ -354,8 +352,9 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
   Eigen::VectorXd outward;
   if (options.unbias_plane_points && noise > 0) {
     const double sigma = noise * template_size;
-    outward =
-        (io::CurvatureSums(rest, rest_normals) * (sigma * sigma)).cwiseMax(-sigma).cwiseMin(sigma);
+    outward = io::CurvatureSums(rest, rest_normals).unaryExpr([sigma](double curvature) {
+      return CurvatureOffset(curvature, sigma);
+    });
   }
   std::vector<int> found;
   std::vector<double> distances;
@@ -507,10 +506,7 @@ std::vector<io::PartMeasure> CutTargetParts(const io::TriangleMesh& morphed,
   Eigen::Matrix3Xd computed_normals;  // for a mesh without
   const Eigen::Matrix3Xd& normals =
       morphed.has_normals() ? morphed.N : (computed_normals = io::VertexNormals(morphed));
-  std::vector<std::vector<int>> faces_of(static_cast<std::size_t>(morphed.num_vertices()));
-  for (Eigen::Index f = 0; f < morphed.F.cols(); ++f)
-    for (Eigen::Index k = 0; k < 3; ++k)
-      faces_of[static_cast<std::size_t>(morphed.F(k, f))].push_back(static_cast<int>(f));
+  const std::vector<std::vector<int>> faces_of = io::FacesOfVertices(morphed);
   const PointIndex index(morphed.V);
   const double max_offset = options.max_offset * size;
   std::vector<double> sum(parts.size(), 0.0);

@@ -88,11 +88,8 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   }
   result.normals_seconds = Since(phase);
 
-  const int fewest = options.surface_neighbours;
-  const int most = std::max(fewest, options.max_surface_neighbours);
-  result.surface_neighbours = static_cast<int>(
-      std::lround(std::clamp(fewest * relative_surface_noise * relative_surface_noise,
-                             static_cast<double>(fewest), static_cast<double>(most))));
+  result.surface_neighbours = NeighboursForNoise(
+      options.surface_neighbours, options.max_surface_neighbours, relative_surface_noise);
   const Eigen::Matrix3Xd centroids =
       PlanePoints(points, normals, *index, result.surface_neighbours, options.surface_radius,
                   options.correct_plane_offset);
@@ -113,7 +110,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   const auto plane_constraint = [&](int i, int j, DenseRound* info) {
     Eigen::Vector3d plane_point = centroids.col(j);
     if (options.unbias_plane_points)
-      plane_point += std::clamp(noise * noise * curvature[i], -noise, noise) * normals.col(j);
+      plane_point += CurvatureOffset(curvature[i], noise) * normals.col(j);
     info->mean_plane_distance += std::abs(normals.col(j).dot(posed.V.col(i) - plane_point));
     return ConstrainPoint(model.vertex_weights, i, model.V.col(i), plane_point, normals.col(j));
   };

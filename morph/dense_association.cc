@@ -182,6 +182,16 @@ NoiseEstimate EstimateNoise(const Eigen::Matrix3Xd& points, const PointIndex& in
   return estimate;
 }
 
+int NeighboursForNoise(int fewest, int most, double relative_noise) {
+  return static_cast<int>(
+      std::lround(std::clamp(fewest * relative_noise * relative_noise, static_cast<double>(fewest),
+                             static_cast<double>(std::max(fewest, most)))));
+}
+
+double CurvatureOffset(double curvature_sum, double sigma) {
+  return std::clamp(sigma * sigma * curvature_sum, -sigma, sigma);
+}
+
 Eigen::Matrix3Xd PlanePoints(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
                              const PointIndex& index, int k, double radius,
                              bool correct_curvature) {

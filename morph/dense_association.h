@@ -55,6 +55,17 @@ DenseAssociation AssociateDense(const Eigen::Matrix3Xd& source,
                                 const PointIndex& target_index,
                                 const DenseAssociationOptions& options = {});
 
+/// Target points a plane point averages on a target @p relative_noise times as noisy as the
+/// level @p fewest points suffice for: fewest x relative_noise^2, so that the plane points
+/// keep that level's noise, and never fewer than @p fewest nor more than @p most (past which
+/// curved parts flatten).
+int NeighboursForNoise(int fewest, int most, double relative_noise);
+
+/// How far inside a noisy surface a ball's centroid sits, to first order: sigma^2 (k1 + k2)
+/// towards the concave side (the points the noise pushed there crowd), for noise @p sigma
+/// and curvature sum @p curvature_sum (positive where convex). At most sigma either way.
+double CurvatureOffset(double curvature_sum, double sigma);
+
 /// A point on each target point's local plane for eq. (14): the centroid of its @p k nearest
 /// points within @p radius (which averages sensor noise along the normal away, over a patch
 /// no wider than the radius, so coarser features survive), and, if @p correct_curvature,
