@@ -11,8 +11,10 @@
 
 namespace vb::morph {
 
-/// Lengths are fractions of the template's size, measured in the target's units through
-/// the scale the morph found.
+/// How cuts are carried onto a target (docs/method.md, "After the morph"). Lengths are
+/// fractions of the template's size, measured in the target's units through the scale the
+/// morph found; noise levels likewise. The measurements behind the defaults are in
+/// docs/decisions.md.
 struct CutTransferOptions {
   /// A cut-line point counts as seen on the target when target points lie this close.
   double support_radius = 0.02;
@@ -40,11 +42,7 @@ struct CutTransferOptions {
   /// On targets noisier than this (TransferCuts' noise, a fraction of the template's size)
   /// the band widens by sqrt(noise / slide_band_noise): through noise only a longer stretch
   /// of the profile says where the cut is, while a wide band on a clean target takes in
-  /// joints a single turned and stretched piece does not model (6 % at every noise level:
-  /// clouds at sigma 4 mm 2.04 -> 2.11 mm, rig 1.74 -> 1.89). Measured on 10 lamb clouds with
-  /// missing regions, sigma 8 / 16 mm: cut distance 3.21 / 5.16 -> 3.02 / 4.93 mm (seed 2:
-  /// 4.23 / 5.50 -> 4.02 / 5.36), within 0.01 mm at sigma <= 4 and on the rig; the band grows in
-  /// proportion to the noise instead (to at most 8 %): 3.30 / 4.89.
+  /// joints a single turned and stretched piece does not model.
   double slide_band_noise = 0.0035;
   /// Template vertices this far beyond slide_band are matched too, so a shifted band still
   /// finds its template surface.
@@ -54,18 +52,11 @@ struct CutTransferOptions {
   double slide_stretch_sigma = 0.1;
   /// Prior standard deviation (radians) of the band's tilt about the axes across the cut,
   /// beyond the normals' turn. The turn is read from the normals within normal_band of the
-  /// cut; where the carcass bends within the wider slide band, an untilted piece can only
-  /// match it by a shift, which reads as the cut being elsewhere. Measured (`bench full
-  /// --pairs 10 --sigmas-mm 0,4,16 --clouds`, seeds 1 / 2 / 3), cut distance at sigma 0 / 4 /
-  /// 16 mm: meshes 1.02 / 1.62 / 2.76 -> 0.92 / 1.49 / 2.70, 1.04 / 1.92 / 4.00 -> 1.00 / 1.81 /
-  /// 3.73, 1.23 / 2.34 / 3.96 -> 1.08 / 2.30 / 3.86; clouds 1.63 / 1.78 / 3.75 -> 1.28 / 1.79 /
-  /// 3.74, 1.49 / 2.06 / 5.30 -> 1.08 / 2.04 / 5.07, 1.48 / 2.82 / 5.31 -> 1.20 / 2.40 / 5.00;
-  /// 0.05 gave the same within 0.13 mm.
+  /// cut; where the carcass bends within the wider slide band, an untilted piece could only
+  /// match it by a shift, which would read as the cut being elsewhere.
   double slide_tilt_sigma = 0.15;
   /// Prior standard deviation of the morph's slide along the body at a cut (fraction of the
-  /// template's size): what the morph's own placement is good to. Over 120 lamb targets
-  /// (bench full, seeds 1 and 2, sigma 0 / 4 / 16 mm, meshes and clouds) the slide ran 2-6 mm
-  /// RMS by cut, 4 mm overall, about 0.0035 of the size.
+  /// template's size): what the morph's own placement is good to (about 4 mm on a lamb).
   double slide_sigma = 0.0035;
   /// The slides at two cuts correlate as exp(-(d / slide_correlation_length)^2) times the
   /// cosine between their planes' normals, d being the distance between the lines' centroids
@@ -73,12 +64,10 @@ struct CutTransferOptions {
   /// body moved the cuts either side of it together. Each cut's placement is then read from
   /// every band fit, each counted by its error (a Gaussian-process posterior), so a band
   /// whose profile says little (the loin / rack cut along the ribs) borrows from a near one
-  /// that says more. On that set the slides at the leg / loin and loin / rack cuts (0.13 of
-  /// the size apart) correlate 0.88-0.90 at every noise level. 0 treats cuts apart.
+  /// that says more. 0 treats cuts apart.
   double slide_correlation_length = 0.2;
   /// What a band fit's reading is good to at best, beyond its own standard error (fraction
-  /// of the size): it models a cut's neighbourhood as one turned and stretched piece, and
-  /// on the true morph that alone leaves the plane 0.6-1.2 mm off.
+  /// of the size): it models a cut's neighbourhood as one turned and stretched piece.
   double slide_model_error = 0.00125;
   /// The band fit uses plane points (dense_association.h) of this many target points within
   /// slide_plane_radius, so sensor noise averages out before the fit.
@@ -86,25 +75,13 @@ struct CutTransferOptions {
   double slide_plane_radius = 0.03;
   /// On targets noisier than slide_band_noise the plane points average more target points,
   /// slide_plane_neighbours x (noise / slide_band_noise)^2, up to this many, as the dense
-  /// stage's do (DenseOptions::max_surface_neighbours). Through 20-point plane points at
-  /// sigma 16 mm the bands read the cut 4-8 mm off on the true morph, all one way (as if the
-  /// body were thinner: a tapered band reads that as a shift). The residuals still count one
-  /// in slide_plane_neighbours as independent: counting one in as many as are averaged made
-  /// the readings' errors 1.2-1.7 times their spread on the true morph, and the plane stayed
-  /// near the morph's (clouds at sigma 16 on seeds 1 / 2 / 3: 4.39 / 5.29 / 5.45 mm, against
-  /// 3.75 / 5.30 / 5.31). Measured with unbias_plane_points on (`bench full --pairs 10
-  /// --sigmas-mm 0,2,4,8,16 --clouds --rig`, seeds 1 / 2 / 3), cut distance at sigma 8 / 16 mm:
-  /// meshes 2.07 / 2.94 -> 2.13 / 2.76, 2.63 / 4.54 -> 2.31 / 4.00, 3.09 / 4.17 -> 2.86 / 3.96;
-  /// clouds 2.33 / 4.51 -> 2.65 / 3.75, 3.43 / 5.48 -> 3.07 / 5.30, 3.84 / 5.75 -> 3.92 / 5.31;
-  /// sigma <= 4 and the rig within 0.06 mm.
+  /// stage's do (DenseOptions::max_surface_neighbours). The fit's residuals still count one
+  /// in slide_plane_neighbours as independent.
   int max_slide_plane_neighbours = 64;
   /// Each plane point is taken as lying sigma^2 (k1 + k2) inside the surface, sigma the
   /// target's noise and k1 + k2 the template's curvature sum at the paired vertex (at most
   /// sigma), as in DenseOptions::unbias_plane_points: a centroid on a noisy convex surface
-  /// sits that far in. Measured as above, cut distance at sigma 4 mm on seeds 1 / 2 / 3:
-  /// meshes 1.69 / 1.96 / 2.39 -> 1.68 / 1.91 / 2.31, clouds 1.82 / 2.24 / 2.99 -> 1.79 /
-  /// 2.10 / 2.83 (the rack / shoulder band gains most); sigma 0 unchanged, sigma 16 within
-  /// 0.07 mm.
+  /// sits that far in.
   bool unbias_plane_points = true;
 };
 

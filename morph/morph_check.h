@@ -17,8 +17,8 @@ struct MorphCheck {
   /// near 1 the coarse stage could not tell two placements apart, 0 when there was none.
   double ambiguity = 0.0;
   /// Fraction of target points farther than MorphCheckOptions::explained_distance (plus
-  /// three times the noise the dense stage estimated) from the morphed template's vertices:
-  /// the part of the carcass the morph did not cover.
+  /// noise_allowance times the noise the dense stage estimated) from the morphed template's
+  /// vertices: the part of the carcass the morph did not cover.
   double unexplained = 0.0;
   /// 90th percentile of |log(edge length morphed / edge length rest)| after the global
   /// scale: how far the morph had to stretch the template to fit.
@@ -30,16 +30,13 @@ struct MorphCheck {
   std::string concern;
 };
 
-/// Limits measured with `vbutcher bench full` (README, "Knowing when not to cut"): on 60
-/// lamb targets the wrong placements (cut planes 30-460 mm off) had ambiguity 0.99-1.0,
-/// unexplained 0.09-0.35 or stretch 0.25-0.34; the good ones at most 0.9, 0.08 and 0.24.
+/// Where the whole-morph check starts to lower the confidence, and where it reaches 0. The
+/// limits sit between what good and wrong placements measured (docs/decisions.md, "Knowing
+/// when not to cut"; docs/method.md, "After the morph").
 struct MorphCheckOptions {
   /// A target point is unexplained farther than explained_distance plus noise_allowance
-  /// times the estimated noise from the morphed template (both template sizes). The
-  /// allowance was 3 while the noise estimate read a third of the true sigma at 16 mm. With
-  /// the estimate reading the true sigma, on 10 lamb clouds with missing regions at sigma
-  /// 16 mm (jobs sent / sent with a cut more than 10 mm off): seed 1, 2 / 2 before, 0 / 0 at
-  /// 0.75, 4 / 2 at 1; seed 2, 3 / 3 before and at 0.75. Lower noise is not affected.
+  /// times the estimated noise (DenseResult::noise) from the morphed template; both in
+  /// template sizes and noise levels.
   double explained_distance = 0.02;
   double noise_allowance = 0.75;
   /// Confidence falls linearly from 1 at ambiguity_start to 0 at 1.

@@ -12,17 +12,14 @@ namespace vb::morph {
 struct TemplateModelOptions {
   /// Where the template's skeleton comes from: the same level-set skeleton the targets get
   /// (applied to the template's vertices), which places junctions and limb ends the same
-  /// way on both sides; or its mean curvature flow skeleton, as in the paper. The level set
-  /// is the default because it measured better (README) and because CGAL's MCF result
-  /// depends on heap addresses: it collapses edges in the order of a std::set of handles,
-  /// so one mesh can give 263 to 283 skeleton nodes in different programs. A template
-  /// model is therefore computed once and stored, not recomputed per run.
+  /// way on both sides; or its mean curvature flow skeleton, as in the paper (see
+  /// docs/method.md, "Skeletons"). CGAL's MCF result depends on heap addresses (it collapses
+  /// edges in the order of a std::set of handles), so a template model is computed once and
+  /// stored, not recomputed per run.
   enum class FeatureSource { kLevelSet, kMeanCurvatureFlow };
   FeatureSource feature_source = FeatureSource::kLevelSet;
   /// Spur and junction thresholds. Shorter spurs than the targets' (CoarseOptions): the
-  /// template is clean, and a short limb such as a lamb's neck must survive. Measured with
-  /// 0.09 as for the targets, the lamb template loses its neck and association at sigma 16
-  /// drops from 93 % to 87 %.
+  /// template is clean, and a short limb such as a lamb's neck must survive.
   FeatureOptions features{.min_branch_length = 0.05, .junction_merge_distance = 0.08};
   DeformationGraphOptions graph;
 };
