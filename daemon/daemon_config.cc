@@ -114,7 +114,8 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
 
   const Section job(r, root, "job",
                     {"presence_min_points", "settle_sets", "max_border_readings", "min_confidence",
-                     "max_result_age_ms", "dump_dir"});
+                     "max_result_age_ms", "morph_deadline_ms", "new_carcass_change", "state_file",
+                     "dump_dir"});
   job.Int("presence_min_points", 100, 2000000, &c.job.presence_min_points);
   if (c.job.presence_min_points > c.fusion.max_points)
     r.Fail(root["job"], "job.presence_min_points", "is larger than fusion.max_points");
@@ -122,6 +123,14 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
   job.Int("max_border_readings", 0, 10000000, &c.job.max_border_readings);
   job.Double("min_confidence", 0.0, 1.0, &c.job.min_confidence);
   job.Int("max_result_age_ms", 100, 60000, &c.job.max_result_age_ms);
+  job.Int("morph_deadline_ms", 50, 600000, &c.job.morph_deadline_ms);
+  job.Double("new_carcass_change", 0.05, 1.0, &c.job.new_carcass_change);
+  if (const YAML::Node n = job["state_file"]) {
+    const std::filesystem::path p(r.Scalar<std::string>(n, job.key("state_file")));
+    c.job.state_file = p.is_absolute() ? p : folder / p;
+    if (!std::filesystem::is_directory(c.job.state_file.parent_path()))
+      r.Fail(n, job.key("state_file"), "no folder " + c.job.state_file.parent_path().string());
+  }
   if (const YAML::Node n = job["dump_dir"]) {
     const std::filesystem::path p(r.Scalar<std::string>(n, job.key("dump_dir")));
     c.job.dump_dir = p.is_absolute() ? p : folder / p;
@@ -157,12 +166,24 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
     r.Fail(root["lcm"]["url"], "lcm.url", "'" + c.lcm.url + "' is neither udpm:// nor memq://");
 
   // The heartbeat period is the protocol's (io::saw::kHeartbeatPeriodMs), not a setting.
-  const Section can(r, root, "can", {"interface", "send_deadline_ms"});
+  const Section can(r, root, "can",
+                    {"interface", "send_deadline_ms", "answer_timeout_ms", "record"});
   can.String("interface", &c.can.interface);
   can.Int("send_deadline_ms", 1, 1000, &c.can.send_deadline_ms);
-  if (c.can.interface.size() > 15)
+  can.Int("answer_timeout_ms", 10, 5000, &c.can.answer_timeout_ms);
+  const bool unix_socket = c.can.interface.rfind("unix:", 0) == 0;
+  if (unix_socket && c.can.interface.size() > 5 + 107)
+    r.Fail(root["can"]["interface"], "can.interface",
+           "'" + c.can.interface + "': the socket path is longer than 107 characters");
+  if (!unix_socket && c.can.interface.size() > 15)
     r.Fail(root["can"]["interface"], "can.interface",
            "'" + c.can.interface + "' is longer than an interface name can be");
+  if (const YAML::Node n = can["record"]) {
+    const std::filesystem::path p(r.Scalar<std::string>(n, can.key("record")));
+    c.can.record = p.is_absolute() ? p : folder / p;
+    if (!std::filesystem::is_directory(c.can.record.parent_path()))
+      r.Fail(n, can.key("record"), "no folder " + c.can.record.parent_path().string());
+  }
 
   // The morph's peak is about 100 MiB (scripts/bench-daemon logs it per job); mimalloc hands
   // the arena out in 32 MiB segments, one or more per thread.

@@ -27,6 +27,17 @@ struct JobOptions {
   double min_confidence = 0.6;
   /// A result older than this (from the frame set it came from) is never sent to the saw.
   int max_result_age_ms = 2500;
+  /// A morph still running this long after it started is abandoned and its job refused;
+  /// a job thread still busy 2 s past it stops feeding the systemd watchdog.
+  int morph_deadline_ms = 2000;
+  /// While a carcass that became a job hangs there, the fraction of its sampled depth
+  /// readings in the region of interest that must change (by more than 40 mm, or appear or
+  /// vanish) for settle_sets frame sets in a row to count as another carcass that replaced it
+  /// without an empty-hook gap. It then becomes a job of its own.
+  double new_carcass_change = 0.35;
+  /// Last carcass number and job sequence, written before each job goes out, so a restarted
+  /// daemon never repeats them (daemon/job_numbers.h). Empty: numbers start from the clock.
+  std::filesystem::path state_file = "/var/lib/virtualbutcher/job-state";
   /// When set, every job's fused cloud and cut lines are written here (last_fused.ply,
   /// last_cuts.csv), replacing the previous job's: for operators and the demo's picture.
   std::filesystem::path dump_dir;
@@ -42,8 +53,16 @@ struct MorphSection {
 struct CanOptions {
   /// SocketCAN interface, or "loopback" for an in-process reference saw controller (for
   /// machines without CAN; the demo and tests say when they use it).
+  /// A SocketCAN interface, "loopback" (an in-process reference saw controller, for
+  /// machines without CAN) or "unix:PATH" (the reference saw in another process,
+  /// `vbutcher saw-sim --unix PATH`). The demo and tests say which they use.
   std::string interface = "can0";
   int send_deadline_ms = 20;
+  /// How long after a job's last frame the saw's answer may take; without one the job is
+  /// unconfirmed (and never resent).
+  int answer_timeout_ms = 250;
+  /// When set, every frame sent to the saw is also written here (candump -L format).
+  std::filesystem::path record;
 };
 
 /// The loop threads' fixed memory budget (daemon/memory_budget.h): one arena reserved at

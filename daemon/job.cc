@@ -15,8 +15,8 @@ vbutcher::cut_lines_t MakeCutLines(const morph::CarcassResult& result,
   m.carcass_id = id.carcass_id;
   m.template_id = id.template_id;
   m.template_version = id.template_version;
-  m.waypoints_sent = false;
-  m.status = result.ok ? "ok" : result.error;
+  m.saw_verdict = vbutcher::cut_lines_t::REFUSED;  // until the saw says otherwise
+  m.status = result.ok ? "not sent" : result.error;
   const std::size_t cuts = std::min<std::size_t>(result.cuts.size(), io::kMaxCutsPerMessage);
   for (std::size_t c = 0; c < cuts; ++c) {
     const morph::TransferredCut& cut = result.cuts[c];

@@ -3,6 +3,7 @@
 #include <array>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 
 #include "daemon/job.h"
@@ -43,9 +44,46 @@ std::int8_t LcmHealth(perception::CameraHealth h) {
 
 }  // namespace
 
+long& VerdictCounts::operator[](Verdict v) {
+  switch (v) {
+    case Verdict::kAccepted:
+      return accepted;
+    case Verdict::kRejected:
+      return rejected;
+    case Verdict::kUnconfirmed:
+      return unconfirmed;
+    case Verdict::kRefused:
+      return refused;
+  }
+  return refused;
+}
+
+namespace {
+
+// The job state file the configuration names, or none when its folder does not exist (a
+// checkout, a test): then the numbers come from the clock, and the log says so.
+std::filesystem::path UsableStateFile(const std::filesystem::path& path, std::string* warning) {
+  if (path.empty() || std::filesystem::is_directory(path.parent_path())) return path;
+  *warning = "job.state_file " + path.string() + ": no folder " + path.parent_path().string() +
+             "; carcass numbers start from the clock and are not kept across restarts";
+  return {};
+}
+
+// Stride of the region-of-interest samples that tell a carcass from its replacement.
+constexpr int kChangeStride = 4;
+constexpr int kChangeMm = 40;
+
+}  // namespace
+
 Pipeline::Pipeline(const DaemonConfig& config, morph::TemplateArtifact artifact,
-                   io::Publisher* publisher, SawLink* saw)
-    : config_(config), artifact_(std::move(artifact)), publisher_(publisher), saw_(saw) {
+                   io::Publisher* publisher, SawSession* saw)
+    : config_(config),
+      artifact_(std::move(artifact)),
+      publisher_(publisher),
+      saw_(saw),
+      numbers_(UsableStateFile(config.job.state_file, &start_warning_)) {
+  if (!numbers_.warning().empty())
+    start_warning_ += (start_warning_.empty() ? "" : "; ") + numbers_.warning();
   morph_options_.coarse.upright = config_.morph.upright;
   fusion_ = std::make_unique<perception::Fusion>(config_.rig, config_.fusion);
   slot_cloud_ = fusion_->MakeOutput();
@@ -62,7 +100,8 @@ void Pipeline::Start() {
 }
 
 void Pipeline::Stop() {
-  stop_ = true;
+  saw_->Close();  // first: nothing goes to the saw once shutdown has begun
+  stop_ = true;   // a morph under way sees it at its next solver iteration
   slot_cv_.notify_all();
   if (capture_thread_.joinable()) capture_thread_.join();
   if (job_thread_.joinable()) job_thread_.join();
@@ -76,9 +115,16 @@ void Pipeline::CaptureLoop() {
   std::vector<std::uint64_t> since(static_cast<std::size_t>(n), 0);
   std::array<perception::DepthView, perception::RigCalibration::kMaxCameras> views;
   perception::FusedCloud cloud = fusion_->MakeOutput();
-  int present_sets = 0, absent_sets = 0;
+  // What hangs in the region, sampled: at the frame set that became a job, and now.
+  std::vector<std::uint16_t> taken_depths(fusion_->RoiSampleCount(kChangeStride));
+  std::vector<std::uint16_t> depths(taken_depths.size());
+  int present_sets = 0, absent_sets = 0, changed_sets = 0;
   long taken_readings = 0;
   bool carcass_taken = false;  // this carcass already became a job
+  // The first camera that was not delivering fresh frames in a frame set since the carcass
+  // arrived: the job is refused naming it.
+  std::string capture_fault;
+  capture_fault.reserve(160);
   while (!stop_) {
     capture.Poll();
     capture_alive_ns_ = perception::MonotonicNs();
@@ -89,50 +135,79 @@ void Pipeline::CaptureLoop() {
     if (!perception::FrameSetReady(capture, since)) continue;
     int used = 0;
     std::int64_t newest_ns = 0;
-    const char* down = nullptr;
+    int stale_camera = -1;
+    const char* stale_what = nullptr;
     for (int c = 0; c < n; ++c) {
-      if (!perception::UsableForFusion(capture, c)) {
-        if (down == nullptr) down = perception::ToString(capture.status(c).health);
-        continue;
+      const perception::CameraStatus& status = capture.status(c);
+      // Fresh: healthy (not merely starting) and its newest frame differs from the one
+      // before (a frozen camera repeats itself before the frozen check fires).
+      if (stale_camera < 0 && status.health != perception::CameraHealth::kOk) {
+        stale_camera = c;
+        stale_what = perception::ToString(status.health);
+      } else if (stale_camera < 0 && status.identical_run > 0) {
+        stale_camera = c;
+        stale_what = "repeating its last frame";
       }
+      if (!perception::UsableForFusion(capture, c)) continue;
       const perception::DepthFrame& f = capture.frame(c);
       views[static_cast<std::size_t>(used++)] = {c, f.depth_mm.data(), f.width, f.height};
       since[static_cast<std::size_t>(c)] = f.sequence;
       newest_ns = std::max(newest_ns, f.host_time_ns);
     }
     const std::span<const perception::DepthView> set(views.data(), static_cast<std::size_t>(used));
-    // While a carcass that already became a job hangs there, only its departure matters: a
-    // count of every 4th pixel's readings in the region of interest (under a millisecond),
-    // not a fusion, so the cores stay with the morph. It has left once the count stays under
-    // a quarter of what it was when it was taken.
+    // While a carcass that already became a job hangs there, only its departure or its
+    // replacement matters: a sampled picture of the region (under a millisecond), not a
+    // fusion, so the cores stay with the morph. It has left once the readings stay under a
+    // quarter of what they were when it was taken; another carcass took its place once much
+    // of the picture changed, for settle_sets frame sets in a row.
     if (carcass_taken) {
-      const long readings = fusion_->CountRoiReadings(set, 4);
+      fusion_->RoiDepths(set, kChangeStride, depths);
+      long readings = 0;
+      for (std::uint16_t d : depths) readings += d != 0 && d != perception::Fusion::kUnknownDepth;
       absent_sets = readings < taken_readings / 4 ? absent_sets + 1 : 0;
+      const double change = perception::RoiChange(taken_depths, depths, kChangeMm);
+      changed_sets = change > config_.job.new_carcass_change ? changed_sets + 1 : 0;
       if (absent_sets >= config_.job.settle_sets) {
         carcass_taken = false;
         present_sets = 0;
+        capture_fault.clear();
+      } else if (changed_sets >= config_.job.settle_sets) {
+        std::fprintf(stderr,
+                     "<5>virtualbutcherd: the carcass on the hook changed without an empty-hook "
+                     "gap (%.0f %% of its depth readings): taken as a new carcass\n",
+                     100 * change);
+        carcass_taken = false;
+        present_sets = 0;
+        capture_fault.clear();
       }
-      continue;
+      if (carcass_taken) continue;
     }
     const std::int64_t t0 = perception::MonotonicNs();
     const perception::FusionStats stats = fusion_->Fuse(set, &cloud);
     const double fusion_s = SecondsSince(t0);
     // Presence: a carcass hangs in the ROI when enough fused points are there, for
     // settle_sets frame sets in a row.
-    present_sets = cloud.size >= config_.job.presence_min_points ? present_sets + 1 : 0;
+    if (cloud.size >= config_.job.presence_min_points) {
+      ++present_sets;
+      if (stale_camera >= 0 && capture_fault.empty()) {
+        capture_fault = "camera ";
+        capture_fault += capture.calibration(stale_camera).name;
+        capture_fault += " was ";
+        capture_fault += stale_what;
+        capture_fault += " while the carcass was captured";
+      }
+    } else {
+      present_sets = 0;
+      capture_fault.clear();
+    }
     if (present_sets < config_.job.settle_sets) continue;
     carcass_taken = true;
-    absent_sets = 0;
-    taken_readings = fusion_->CountRoiReadings(set, 4);
-    std::string refusal;
-    if (down != nullptr) {
-      for (int c = 0; c < n; ++c)
-        if (!perception::UsableForFusion(capture, c)) {
-          refusal = "camera " + capture.calibration(c).name + " is " +
-                    perception::ToString(capture.status(c).health);
-          break;
-        }
-    }
+    absent_sets = changed_sets = 0;
+    fusion_->RoiDepths(set, kChangeStride, taken_depths);
+    taken_readings = 0;
+    for (std::uint16_t d : taken_depths)
+      taken_readings += d != 0 && d != perception::Fusion::kUnknownDepth;
+    std::string refusal = capture_fault;
     if (refusal.empty() && stats.border_readings > config_.job.max_border_readings) {
       char why[160];
       std::snprintf(why, sizeof(why),
@@ -179,10 +254,46 @@ void Pipeline::JobLoop() {
       refusal = slot_refusal_;
       slot_full_ = false;
     }
+    job_started_ns_ = perception::MonotonicNs();
     busy_ = true;
     RunJob(points, normals, frames_ns, frames_utime, fusion_s, refusal);
     busy_ = false;
+    job_alive_ns_ = perception::MonotonicNs();
   }
+}
+
+JobOutcome Pipeline::Deliver(const morph::CarcassResult& result, const std::string& refusal,
+                             const JobNumbers::Ids& ids, std::int64_t frames_ns) {
+  JobOutcome out;
+  if (!refusal.empty()) {
+    out.reason = refusal;
+    return out;
+  }
+  if (stop_) {
+    out.reason = "shutting down: no job goes to the saw";
+    return out;
+  }
+  if (!result.ok && result.error.rfind("abandoned", 0) == 0) {
+    char why[96];
+    std::snprintf(why, sizeof why, "morph abandoned: still running after %d ms",
+                  config_.job.morph_deadline_ms);
+    out.reason = why;
+    return out;
+  }
+  io::saw::Job job;
+  out.reason = MakeSawJob(result, config_.X_SawRig, config_.job.min_confidence, ids.carcass,
+                          ids.sequence, &job);
+  if (!out.reason.empty()) return out;
+  // Never a stale command: a result that took too long is not sent.
+  const double age_s = SecondsSince(frames_ns);
+  if (age_s * 1000 > config_.job.max_result_age_ms) {
+    char why[96];
+    std::snprintf(why, sizeof why, "result is %.2f s old, over the %d ms limit", age_s,
+                  config_.job.max_result_age_ms);
+    out.reason = why;
+    return out;
+  }
+  return saw_->SendJob(job);
 }
 
 void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
@@ -190,24 +301,25 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
                       const std::string& refusal) {
   ResetMemoryBudgetPeak();  // the log's peak is then this job's
   JobReport report;
-  std::uint32_t number;
-  std::uint8_t sequence;
-  {
-    std::lock_guard<std::mutex> lock(state_mutex_);
-    number = next_carcass_++;
-    sequence = ++job_sequence_;
-  }
-  char id[32];
-  std::snprintf(id, sizeof(id), "C%06u", number);
-  report.carcass_id = id;
+  // The numbers are on disk before any frame of this job can leave.
+  std::string state_error;
+  const JobNumbers::Ids ids = numbers_.Next(&state_error);
+  if (!state_error.empty())
+    std::fprintf(stderr, "<4>virtualbutcherd: %s\n", state_error.c_str());
+  report.carcass_id = JobNumbers::Name(ids.carcass);
   report.fusion_s = fusion_s;
   report.fused_points = static_cast<int>(points.cols());
 
   // A refused carcass (a camera down) is not morphed at all: a missing cut is recoverable.
   morph::CarcassResult result;
   if (refusal.empty()) {
-    result = morph::MorphCarcass(artifact_.model, artifact_.annotations, points, normals,
-                                 morph_options_);
+    std::fprintf(stderr, "<6>virtualbutcherd: %s: morphing %d points\n",
+                 report.carcass_id.c_str(), report.fused_points);
+    morph::MorphOptions options = morph_options_;
+    options.deadline.at =
+        Clock::now() + std::chrono::milliseconds(config_.job.morph_deadline_ms);
+    options.deadline.cancel = &stop_;
+    result = morph::MorphCarcass(artifact_.model, artifact_.annotations, points, normals, options);
   } else {
     result.error = refusal;
   }
@@ -218,45 +330,24 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
     report.planes.push_back(cut.plane);
   }
 
-  JobIdentity identity{report.carcass_id, number, artifact_.template_id, artifact_.template_version,
-                       frames_utime};
-  vbutcher::cut_lines_t message = MakeCutLines(result, artifact_.annotations, identity);
-  io::saw::Job job;
-  std::string why = refusal.empty() ? MakeSawJob(result, config_.X_SawRig,
-                                                 config_.job.min_confidence, number, sequence, &job)
-                                    : refusal;
-  // Never a stale command: a result that took too long is not sent.
-  const double age_s = SecondsSince(frames_ns);
-  if (why.empty() && age_s * 1000 > config_.job.max_result_age_ms) {
-    char text[96];
-    std::snprintf(text, sizeof(text), "result is %.2f s old, over the %d ms limit", age_s,
-                  config_.job.max_result_age_ms);
-    why = text;
-  }
-  const std::int64_t send_start = perception::MonotonicNs();
-  if (why.empty()) {
-    io::saw::Protector protector;
-    std::array<io::saw::Frame, io::saw::kMaxJobFrames> frames;
-    const int count = io::saw::EncodeJob(job, &protector, &frames);
-    if (count == 0) why = "the job cannot be encoded";
-    for (int i = 0; i < count && why.empty(); ++i) {
-      const auto deadline = Clock::now() + std::chrono::milliseconds(config_.can.send_deadline_ms);
-      if (!saw_->Send(frames[static_cast<std::size_t>(i)], deadline))
-        why = "CAN frame " + std::to_string(i) + " missed its deadline (" + saw_->state() + ")";
-    }
-  }
-  report.send_s = SecondsSince(send_start);
-  report.sent_to_saw = why.empty();
-  report.status = why.empty() ? "ok" : why;
+  const JobOutcome outcome = Deliver(result, refusal, ids, frames_ns);
+  report.verdict = outcome.verdict;
+  report.reason = outcome.reason;
+  report.send_s = outcome.send_s;
+  report.answer_s = outcome.answer_s;
   report.latency_s = SecondsSince(frames_ns);
-  message.waypoints_sent = report.sent_to_saw;
-  message.status = report.status;
+
+  JobIdentity identity{report.carcass_id, ids.carcass, artifact_.template_id,
+                       artifact_.template_version, frames_utime};
+  vbutcher::cut_lines_t message = MakeCutLines(result, artifact_.annotations, identity);
+  message.saw_verdict = static_cast<std::int8_t>(outcome.verdict);
+  message.status = outcome.verdict == Verdict::kAccepted ? "accepted" : outcome.reason;
   if (!publisher_->Publish(message))
-    std::fprintf(stderr, "<4>virtualbutcherd: cut lines of %s not published: %s\n", id,
-                 publisher_->last_error().c_str());
+    std::fprintf(stderr, "<4>virtualbutcherd: cut lines of %s not published: %s\n",
+                 report.carcass_id.c_str(), publisher_->last_error().c_str());
   if (!config_.job.dump_dir.empty()) Dump(points, normals, result);
   std::lock_guard<std::mutex> lock(state_mutex_);
-  (report.sent_to_saw ? jobs_done_ : jobs_failed_)++;
+  ++verdicts_[outcome.verdict];
   last_ = report;
   if (reports_.size() < 1024) reports_.push_back(report);  // bounded if nobody takes them
 }
@@ -283,7 +374,13 @@ void Pipeline::Dump(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& norm
 bool Pipeline::Tick() {
   const std::int64_t now = perception::MonotonicNs();
   const bool capture_ok = now - capture_alive_ns_.load() < 2000000000;
-  const bool job_ok = now - job_alive_ns_.load() < 2000000000 || busy_;
+  // A job thread that hangs (in a morph that no longer sees its deadline, or anywhere else)
+  // stops feeding the watchdog 2 s after its deadline.
+  const std::int64_t busy_limit_ns =
+      (std::int64_t{config_.job.morph_deadline_ms} + config_.can.answer_timeout_ms + 2000) *
+      1000000;
+  const bool job_ok = busy_ ? now - job_started_ns_.load() < busy_limit_ns
+                            : now - job_alive_ns_.load() < 2000000000;
   bool degraded = false;
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
@@ -297,14 +394,9 @@ bool Pipeline::Tick() {
     state = io::saw::DaemonState::kDegraded;
   else if (busy_)
     state = io::saw::DaemonState::kBusy;
-  io::saw::Frame heartbeat = io::saw::Encode(io::saw::Heartbeat{state, uptime_ms_});
-  static thread_local io::saw::Protector protector;
-  protector.Protect(&heartbeat);
+  saw_->SendHeartbeat(state, uptime_ms_);
   uptime_ms_ += io::saw::kHeartbeatPeriodMs;
-  saw_->Send(heartbeat, Clock::now() + std::chrono::milliseconds(io::saw::kHeartbeatPeriodMs / 2));
-  io::saw::Frame ack;
-  while (saw_->Receive(&ack, Clock::now())) {
-  }
+  saw_->Poll();
   if (Clock::now() >= next_status_) {
     PublishStatus();
     next_status_ = Clock::now() + std::chrono::milliseconds(config_.lcm.status_period_ms);
@@ -332,13 +424,15 @@ void Pipeline::PublishStatus() {
   s.state = degraded ? vbutcher::status_t::DEGRADED
                      : (busy_.load() ? vbutcher::status_t::BUSY : vbutcher::status_t::READY);
   s.state_text = StatusLineLocked();
-  s.can_state = saw_->state();
+  s.can_state = saw_->link_state();
   s.capture_latency_s = 0;
   s.fusion_latency_s = static_cast<float>(last_.fusion_s);
   s.morph_latency_s = static_cast<float>(last_.morph_s);
   s.publish_latency_s = static_cast<float>(last_.send_s);
-  s.jobs_done = jobs_done_;
-  s.jobs_failed = jobs_failed_;
+  s.jobs_accepted = verdicts_.accepted;
+  s.jobs_rejected = verdicts_.rejected;
+  s.jobs_unconfirmed = verdicts_.unconfirmed;
+  s.jobs_refused = verdicts_.refused;
   publisher_->Publish(s);
 }
 
@@ -356,12 +450,21 @@ std::string Pipeline::StatusLineLocked() const {
     std::snprintf(budget, sizeof(budget), "; memory %.0f of %zu MiB, %ld from the heap",
                   static_cast<double>(memory.arena_live_bytes) / (1 << 20),
                   memory.arena_bytes >> 20, memory.heap_allocations);
-  char line[320];
-  std::snprintf(line, sizeof(line), "%s; jobs %ld sent, %ld refused%s; last %s: %s",
-                busy_.load() ? "morphing" : "waiting for a carcass", jobs_done_, jobs_failed_,
-                budget, last_.carcass_id.empty() ? "-" : last_.carcass_id.c_str(),
-                last_.status.empty() ? "-" : last_.status.c_str());
+  char line[480];
+  std::snprintf(line, sizeof(line),
+                "%s; jobs accepted %ld, rejected %ld, unconfirmed %ld, refused %ld%s; last %s: "
+                "%s%s%s",
+                busy_.load() ? "morphing" : "waiting for a carcass", verdicts_.accepted,
+                verdicts_.rejected, verdicts_.unconfirmed, verdicts_.refused, budget,
+                last_.carcass_id.empty() ? "-" : last_.carcass_id.c_str(),
+                last_.carcass_id.empty() ? "-" : ToString(last_.verdict),
+                last_.reason.empty() ? "" : ": ", last_.reason.c_str());
   return line;
+}
+
+VerdictCounts Pipeline::verdicts() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return verdicts_;
 }
 
 std::vector<JobReport> Pipeline::TakeReports() {

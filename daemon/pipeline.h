@@ -10,7 +10,8 @@
 #include <vector>
 
 #include "daemon/daemon_config.h"
-#include "daemon/saw_link.h"
+#include "daemon/job_numbers.h"
+#include "daemon/saw_session.h"
 #include "io/lcm_publisher.h"
 #include "morph/morph_carcass.h"
 #include "morph/template_artifact.h"
@@ -23,24 +24,31 @@ namespace vb::daemon {
 struct JobReport {
   std::string carcass_id;
   bool morph_ok = false;
-  bool sent_to_saw = false;
-  std::string status;  ///< "ok" or why the saw got nothing
+  Verdict verdict = Verdict::kRefused;  ///< only kAccepted means the saw will cut
+  std::string reason;                   ///< why not, unless accepted
   std::vector<double> confidences;
   std::vector<io::Plane> planes;  ///< rig frame
-  double fusion_s = 0, morph_s = 0, send_s = 0;
-  double latency_s = 0;  ///< from the frame set to the last CAN frame (or the refusal)
+  double fusion_s = 0, morph_s = 0, send_s = 0, answer_s = 0;
+  double latency_s = 0;  ///< from the frame set to the saw's answer (or the refusal)
   int fused_points = 0;
 };
 
+/// Jobs since start by verdict.
+struct VerdictCounts {
+  long accepted = 0, rejected = 0, unconfirmed = 0, refused = 0;
+  long& operator[](Verdict v);
+};
+
 /// The daemon's work: a capture thread (OpenNI2 frames -> fusion -> carcass presence) and a
-/// job thread (morph -> cut lines on LCM -> waypoints on CAN). Between them one job slot,
-/// newest wins: a carcass that arrives while the previous one is still being morphed
-/// replaces any job waiting, never queues behind it. The caller's thread sends the saw
-/// heartbeat and the status (Tick()). Owns threads and devices: not copyable.
+/// job thread (morph -> waypoints to the saw -> the saw's verdict -> cut lines on LCM).
+/// Between them one job slot, newest wins: a carcass that arrives while the previous one is
+/// still being morphed replaces any job waiting, never queues behind it. The caller's thread
+/// sends the saw heartbeat and the status (Tick()). Owns threads and devices: not copyable.
 class Pipeline {
  public:
+  /// @p saw is the daemon's one session with the saw (it outlives the pipeline).
   Pipeline(const DaemonConfig& config, morph::TemplateArtifact artifact, io::Publisher* publisher,
-           SawLink* saw);
+           SawSession* saw);
   ~Pipeline();
   Pipeline(const Pipeline&) = delete;
   Pipeline& operator=(const Pipeline&) = delete;
@@ -48,16 +56,22 @@ class Pipeline {
   /// Opens the cameras and starts the threads. @throws std::runtime_error when OpenNI2
   /// cannot start.
   void Start();
+  /// Shutdown begins: no job goes to the saw from now on (a morph under way is abandoned and
+  /// its job refused), then the threads are joined. Safe to call twice.
   void Stop();
 
-  /// Once per heartbeat period from the main loop: heartbeat to the saw, acknowledgements
-  /// from it, status on LCM when due. Returns true while both threads are alive and looping
-  /// (the systemd watchdog is fed only then).
+  /// Once per heartbeat period from the main loop: heartbeat to the saw, answers from it,
+  /// status on LCM when due. Returns true while both threads are alive: the capture thread
+  /// looping, the job thread waiting or within its morph deadline plus 2 s (the systemd
+  /// watchdog is fed only then).
   bool Tick();
 
   /// Jobs finished so far (for the daemon's log and tests); each is reported once.
   std::vector<JobReport> TakeReports();
   std::string StatusLine() const;
+  VerdictCounts verdicts() const;
+  /// Warnings from start-up (job state file), for the daemon's log.
+  const std::string& start_warning() const { return start_warning_; }
 
  private:
   void CaptureLoop();
@@ -65,6 +79,9 @@ class Pipeline {
   void RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
               std::int64_t frames_ns, std::int64_t frames_utime, double fusion_s,
               const std::string& refusal);
+  // The saw's verdict on a job: sent when nothing speaks against it.
+  JobOutcome Deliver(const morph::CarcassResult& result, const std::string& refusal,
+                     const JobNumbers::Ids& ids, std::int64_t frames_ns);
   void PublishStatus();
   void Dump(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
             const morph::CarcassResult& result) const;
@@ -74,13 +91,16 @@ class Pipeline {
   morph::TemplateArtifact artifact_;
   morph::MorphOptions morph_options_;
   io::Publisher* publisher_;
-  SawLink* saw_;
+  SawSession* saw_;
+  std::string start_warning_;  // before numbers_, whose construction may write it
+  JobNumbers numbers_;         // the job thread's
   std::unique_ptr<perception::RigCapture> capture_;
   std::unique_ptr<perception::Fusion> fusion_;
 
   std::atomic<bool> stop_{false};
   std::thread capture_thread_, job_thread_;
   std::atomic<std::int64_t> capture_alive_ns_{0}, job_alive_ns_{0};
+  std::atomic<std::int64_t> job_started_ns_{0};  // while busy_
 
   // The job slot (newest wins), with buffers of the fusion budget's capacity.
   std::mutex slot_mutex_;
@@ -97,10 +117,8 @@ class Pipeline {
   std::vector<perception::CameraStatus> camera_status_;
   std::vector<JobReport> reports_;
   JobReport last_;
-  long jobs_done_ = 0, jobs_failed_ = 0;
+  VerdictCounts verdicts_;
   std::atomic<bool> busy_{false};
-  std::uint32_t next_carcass_ = 1;
-  std::uint8_t job_sequence_ = 0;
 
   std::uint32_t uptime_ms_ = 0;
   std::chrono::steady_clock::time_point next_status_{};

@@ -15,6 +15,7 @@
 #include "daemon/notify.h"
 #include "daemon/pipeline.h"
 #include "daemon/saw_link.h"
+#include "daemon/saw_session.h"
 #include "io/error.h"
 #include "io/process_status.h"
 #include "morph/template_artifact.h"
@@ -24,13 +25,17 @@ namespace {
 std::atomic<int> g_signal{0};
 void OnSignal(int signal) { g_signal = signal; }
 
+// One line per job with the saw's verdict: info when accepted, warning otherwise (so
+// `journalctl -p warning` lists every job the saw will not cut).
 void PrintReport(const vb::daemon::JobReport& r) {
+  const bool accepted = r.verdict == vb::daemon::Verdict::kAccepted;
   std::fprintf(stderr,
-               "<6>virtualbutcherd: %s: %s; %d points, fusion %.3f s, morph %.3f s, "
-               "send %.3f s, latency %.3f s, rss %ld KiB, peak %ld KiB\n",
-               r.carcass_id.c_str(), r.sent_to_saw ? "waypoints sent" : r.status.c_str(),
-               r.fused_points, r.fusion_s, r.morph_s, r.send_s, r.latency_s,
-               vb::io::ProcessStatusKib("VmRSS"), vb::io::ProcessStatusKib("VmHWM"));
+               "%svirtualbutcherd: %s: saw verdict %s%s%s; %d points, fusion %.3f s, morph "
+               "%.3f s, send %.3f s, answer %.3f s, latency %.3f s, rss %ld KiB, peak %ld KiB\n",
+               accepted ? "<6>" : "<4>", r.carcass_id.c_str(), vb::daemon::ToString(r.verdict),
+               accepted ? "" : ": ", r.reason.c_str(), r.fused_points, r.fusion_s, r.morph_s,
+               r.send_s, r.answer_s, r.latency_s, vb::io::ProcessStatusKib("VmRSS"),
+               vb::io::ProcessStatusKib("VmHWM"));
   std::fprintf(stderr, "<6>virtualbutcherd: %s   memory: %s\n", r.carcass_id.c_str(),
                vb::daemon::DescribeMemoryBudget(vb::daemon::GetMemoryBudgetStats()).c_str());
   for (std::size_t c = 0; c < r.planes.size(); ++c) {
@@ -103,12 +108,19 @@ int main(int argc, char** argv) {
 
   std::unique_ptr<vb::io::LcmPublisher> publisher;
   std::unique_ptr<vb::daemon::SawLink> saw;
+  std::unique_ptr<vb::daemon::SawSession> session;
   std::unique_ptr<vb::daemon::Pipeline> pipeline;
   try {
     publisher = std::make_unique<vb::io::LcmPublisher>(config.lcm.url, config.lcm.channels);
-    saw = vb::daemon::MakeSawLink(config.can.interface);
+    saw = vb::daemon::MakeSawLink(config.can.interface, config.can.record);
+    // The one owner of the saw protocol's state for this process's life.
+    session = std::make_unique<vb::daemon::SawSession>(
+        saw.get(),
+        vb::daemon::SawSessionOptions{config.can.send_deadline_ms, config.can.answer_timeout_ms});
     pipeline = std::make_unique<vb::daemon::Pipeline>(config, std::move(artifact), publisher.get(),
-                                                      saw.get());
+                                                      session.get());
+    if (!pipeline->start_warning().empty())
+      std::fprintf(stderr, "<4>virtualbutcherd: %s\n", pipeline->start_warning().c_str());
     pipeline->Start();
   } catch (const vb::InputError& e) {
     std::fprintf(stderr, "<3>virtualbutcherd: %s\n", e.what());
@@ -153,7 +165,25 @@ int main(int argc, char** argv) {
       break;
   }
   notifier.Stopping();
-  pipeline->Stop();
-  std::fprintf(stderr, "<6>virtualbutcherd: stopped after %d jobs\n", jobs);
+  pipeline->Stop();  // first thing: no job goes to the saw any more
+  for (const vb::daemon::JobReport& r : pipeline->TakeReports()) {
+    PrintReport(r);
+    ++jobs;
+  }
+  const vb::daemon::VerdictCounts v = pipeline->verdicts();
+  const vb::daemon::SawSession::Counters link = session->counters();
+  std::fprintf(stderr,
+               "<6>virtualbutcherd: stopped after %d jobs; saw verdicts: accepted %ld, rejected "
+               "%ld, unconfirmed %ld, refused %ld; saw answers %ld (%ld late, %ld unmatched, %ld "
+               "failing their check)\n",
+               jobs, v.accepted, v.rejected, v.unconfirmed, v.refused, link.answers,
+               link.answers_late, link.answers_unmatched, link.answers_bad);
+  if (const auto* loopback = dynamic_cast<const vb::daemon::LoopbackSawLink*>(saw.get())) {
+    const vb::io::saw::SawController::Counters c = loopback->counters();
+    std::fprintf(stderr,
+                 "<6>virtualbutcherd: loopback saw controller: jobs accepted %ld, rejected %ld; "
+                 "frames %ld, refused %ld\n",
+                 c.jobs_accepted, c.jobs_rejected, c.frames, c.frames_rejected);
+  }
   return exit_code;
 }

@@ -23,6 +23,9 @@ std::string ValidateCutLines(const vbutcher::cut_lines_t& m) {
     return "num_parts " + std::to_string(m.num_parts) + " with " + std::to_string(m.parts.size()) +
            " parts";
   if (m.carcass_id.empty()) return "empty carcass_id";
+  if (m.saw_verdict < vbutcher::cut_lines_t::ACCEPTED ||
+      m.saw_verdict > vbutcher::cut_lines_t::REFUSED)
+    return "saw_verdict " + std::to_string(m.saw_verdict) + " is none of the four verdicts";
   for (const vbutcher::cut_t& c : m.cuts) {
     const std::string where = "cut '" + c.name + "': ";
     if (c.name.empty()) return "a cut has no name";
@@ -73,9 +76,10 @@ LcmPublisher::~LcmPublisher() = default;
 
 template <typename Message>
 bool LcmPublisher::Send(const std::string& channel, std::int64_t* sequence, Message* message) {
+  std::lock_guard<std::mutex> lock(publish_mutex_);
   message->sequence = ++*sequence;
   if (lcm_->publish(channel, message) != 0) {
-    last_error_ = "publishing on " + channel + " failed";
+    set_last_error("publishing on " + channel + " failed");
     return false;
   }
   return true;
@@ -83,14 +87,14 @@ bool LcmPublisher::Send(const std::string& channel, std::int64_t* sequence, Mess
 
 bool LcmPublisher::Publish(vbutcher::cut_lines_t& message) {
   if (std::string why = ValidateCutLines(message); !why.empty()) {
-    last_error_ = "cut lines of carcass '" + message.carcass_id + "' not published: " + why;
+    set_last_error("cut lines of carcass '" + message.carcass_id + "' not published: " + why);
     return false;
   }
   const int size = message.getEncodedSize();
   if (size > kMaxCutLinesBytes) {
-    last_error_ = "cut lines of carcass '" + message.carcass_id +
-                  "' not published: " + std::to_string(size) + " bytes, over " +
-                  std::to_string(kMaxCutLinesBytes);
+    set_last_error("cut lines of carcass '" + message.carcass_id +
+                   "' not published: " + std::to_string(size) + " bytes, over " +
+                   std::to_string(kMaxCutLinesBytes));
     return false;
   }
   return Send(channels_.cut_lines, &cut_lines_sequence_, &message);
@@ -99,7 +103,7 @@ bool LcmPublisher::Publish(vbutcher::cut_lines_t& message) {
 bool LcmPublisher::Publish(vbutcher::status_t& message) {
   if (message.num_cameras < 0 ||
       static_cast<std::size_t>(message.num_cameras) != message.cameras.size()) {
-    last_error_ = "status not published: num_cameras does not match cameras";
+    set_last_error("status not published: num_cameras does not match cameras");
     return false;
   }
   return Send(channels_.status, &status_sequence_, &message);

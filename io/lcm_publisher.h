@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <string>
 
 #include "vbutcher/cut_lines_t.hpp"
@@ -36,16 +37,28 @@ void ThinCutLines(vbutcher::cut_lines_t* message);
 
 /// Where the daemon's results go. Publish stamps the sequence number (per channel, +1 per
 /// message); the caller sets utime. Returns false (and says why in last_error()) when the
-/// message was refused or could not be sent; never throws on a bad message.
+/// message was refused or could not be sent; never throws on a bad message. Thread safe:
+/// the daemon's job thread and main thread publish at once.
 class Publisher {
  public:
   virtual ~Publisher() = default;
   virtual bool Publish(vbutcher::cut_lines_t& message) = 0;
   virtual bool Publish(vbutcher::status_t& message) = 0;
   virtual bool Publish(vbutcher::diagnostic_t& message) = 0;
-  const std::string& last_error() const { return last_error_; }
+  /// Why the last failed Publish failed (of any thread).
+  std::string last_error() const {
+    std::lock_guard<std::mutex> lock(error_mutex_);
+    return last_error_;
+  }
 
  protected:
+  void set_last_error(std::string why) {
+    std::lock_guard<std::mutex> lock(error_mutex_);
+    last_error_ = std::move(why);
+  }
+
+ private:
+  mutable std::mutex error_mutex_;
   std::string last_error_;
 };
 
@@ -67,6 +80,7 @@ class LcmPublisher final : public Publisher {
   template <typename Message>
   bool Send(const std::string& channel, std::int64_t* sequence, Message* message);
 
+  std::mutex publish_mutex_;  // one message on the wire at a time
   std::unique_ptr<lcm::LCM> lcm_;
   LcmChannels channels_;
   std::int64_t cut_lines_sequence_ = 0;

@@ -69,6 +69,8 @@ class SawController {
   /// clock of OnFrame/OnTick; a large value when nothing is pending.
   std::int64_t NextDeadlineMs() const;
   const Counters& counters() const { return counters_; }
+  /// When safe stop is due if no good heartbeat comes (valid once one came).
+  std::int64_t HeartbeatDeadlineMs() const { return HeartbeatDeadline(); }
   /// The last job the saw accepted (valid when counters().jobs_accepted > 0).
   const Job& last_job() const { return last_job_; }
   /// One line describing @p event, for logs.

@@ -160,6 +160,22 @@ Eigen::Matrix3d DeformationState::rotation(int j) const {
       R[static_cast<std::size_t>(j)].data());
 }
 
+namespace {
+
+// Stops the solver, unusable, once the deadline passed.
+class DeadlineCallback final : public ceres::IterationCallback {
+ public:
+  explicit DeadlineCallback(const MorphDeadline& deadline) : deadline_(deadline) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
+    return deadline_.Passed() ? ceres::SOLVER_ABORT : ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  const MorphDeadline& deadline_;
+};
+
+}  // namespace
+
 SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
                                       std::span<const PointConstraint> constraints,
                                       const EmbeddedDeformationOptions& options,
@@ -208,11 +224,18 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
   solver_options.num_threads = options.num_threads;
   solver_options.function_tolerance = options.function_tolerance;
   solver_options.logging_type = ceres::SILENT;
+  DeadlineCallback deadline(options.deadline);
+  solver_options.callbacks.push_back(&deadline);
   if (options.linear_solver == EmbeddedDeformationOptions::LinearSolver::kConjugateGradients) {
     solver_options.linear_solver_type = ceres::CGNR;
     solver_options.preconditioner_type = ceres::JACOBI;
   }
   ceres::Solver::Summary summary;
+  if (options.deadline.Passed()) {
+    SolveSummary out;
+    out.message = "past the morph's deadline";
+    return out;
+  }
   ceres::Solve(solver_options, &problem, &summary);
 
   SolveSummary out;

@@ -1,6 +1,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <atomic>
+#include <chrono>
 #include <span>
 #include <string>
 #include <vector>
@@ -8,6 +10,18 @@
 #include "morph/deformation_graph.h"
 
 namespace vb::morph {
+
+/// When a morph must give up: a moment on the steady clock, and a flag another thread may
+/// raise (shutdown). The solver checks it at every iteration and the stages between steps.
+struct MorphDeadline {
+  std::chrono::steady_clock::time_point at = std::chrono::steady_clock::time_point::max();
+  const std::atomic<bool>* cancel = nullptr;  ///< not owned; may be null
+  bool Passed() const {
+    return (cancel != nullptr && cancel->load(std::memory_order_relaxed)) ||
+           (at != std::chrono::steady_clock::time_point::max() &&
+            std::chrono::steady_clock::now() >= at);
+  }
+};
 
 /// Per-node affine transforms of the embedded deformation: point p near node j moves to
 /// R_j (p - g_j) + g_j + t_j.
@@ -47,13 +61,15 @@ struct EmbeddedDeformationOptions {
   /// How each Levenberg-Marquardt step is solved. Sparse normal Cholesky suits the coarse
   /// stage's few constraints; with thousands of dense point-to-plane terms, each coupling
   /// four nodes, the normal matrix fills in and conjugate gradients (CGNR, Jacobi
-  /// preconditioner) measured 4-6 times faster for the same cost (README).
+  /// preconditioner) reach the same cost several times faster.
   enum class LinearSolver { kSparseNormalCholesky, kConjugateGradients };
   LinearSolver linear_solver = LinearSolver::kSparseNormalCholesky;
   int num_threads = 2;
   /// The solve stops when a step changes the cost by less than this fraction of it (Ceres'
   /// function_tolerance).
   double function_tolerance = 1e-7;
+  /// The solve stops, unusable, once this passes.
+  MorphDeadline deadline;
 };
 
 struct SolveSummary {

@@ -11,20 +11,38 @@ double Since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
+// The stages' options with the morph's deadline in each solver.
+MorphOptions WithDeadline(const MorphOptions& options) {
+  MorphOptions o = options;
+  o.coarse.deformation.deadline = options.deadline;
+  o.dense.deformation.deadline = options.deadline;
+  return o;
+}
+
+// True (and @p r says so) when the morph ran past its deadline.
+bool Abandoned(CarcassResult* r, const MorphDeadline& deadline) {
+  if (!deadline.Passed()) return false;
+  r->ok = false;
+  r->error = "abandoned: the morph ran past its deadline or was cancelled";
+  return true;
+}
+
 }  // namespace
 
 CarcassResult MorphFromCoarse(const TemplateModel& model, const io::Annotations& annotations,
                               CoarseResult coarse, const Eigen::Matrix3Xd& target,
-                              const Eigen::Matrix3Xd& normals, const MorphOptions& options) {
+                              const Eigen::Matrix3Xd& normals, const MorphOptions& given) {
   const auto start = std::chrono::steady_clock::now();
+  const MorphOptions options = WithDeadline(given);
   CarcassResult r;
   r.coarse = std::move(coarse);
   try {
     if (!r.coarse.ok) {
       r.error = "coarse stage: " + r.coarse.error;
-    } else {
+    } else if (!Abandoned(&r, options.deadline)) {
       r.dense = AlignDense(model, r.coarse, target, normals, options.dense);
-      if (!r.dense.ok) {
+      if (Abandoned(&r, options.deadline)) {
+      } else if (!r.dense.ok) {
         r.error = "dense stage: " + r.dense.error;
       } else {
         const auto phase = std::chrono::steady_clock::now();
@@ -38,7 +56,7 @@ CarcassResult MorphFromCoarse(const TemplateModel& model, const io::Annotations&
                                    r.coarse.template_to_target.scale, options.parts);
         }
         r.cuts_seconds = Since(phase);
-        r.ok = true;
+        r.ok = !Abandoned(&r, options.deadline);
       }
     }
   } catch (const std::exception& e) {  // a bad target is a result, not a crash
@@ -55,7 +73,7 @@ CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& an
   const auto start = std::chrono::steady_clock::now();
   CoarseResult coarse;
   try {
-    coarse = AlignCoarse(model, target, options.coarse);
+    coarse = AlignCoarse(model, target, WithDeadline(options).coarse);
   } catch (const std::exception& e) {  // a bad target is a result, not a crash
     CarcassResult r;
     r.error = e.what();
@@ -63,6 +81,7 @@ CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& an
     return r;
   }
   CarcassResult r = MorphFromCoarse(model, annotations, std::move(coarse), target, normals, options);
+  if (!r.ok && options.deadline.Passed()) Abandoned(&r, options.deadline);
   r.seconds = Since(start);
   return r;
 }

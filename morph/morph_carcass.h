@@ -20,6 +20,9 @@ struct MorphOptions {
   CutTransferOptions cuts;
   PartVolumeOptions parts;
   MorphCheckOptions check;
+  /// A morph past it stops and fails with "abandoned: ..." (the daemon's job deadline and
+  /// shutdown). It overrides the stages' own.
+  MorphDeadline deadline;
 };
 
 /// One carcass through the whole method: coarse posture, dense surface, cut transfer and

@@ -131,6 +131,57 @@ long Fusion::CountRoiReadings(std::span<const DepthView> images, int stride) con
   return count;
 }
 
+std::size_t Fusion::RoiSampleCount(int stride) const {
+  std::size_t n = 0;
+  for (const Camera& cam : cameras_)
+    n += static_cast<std::size_t>((cam.height + stride - 1) / stride) *
+         static_cast<std::size_t>((cam.width + stride - 1) / stride);
+  return n;
+}
+
+void Fusion::RoiDepths(std::span<const DepthView> images, int stride,
+                       std::span<std::uint16_t> out) const {
+  VB_DEMAND(out.size() == RoiSampleCount(stride));
+  std::fill(out.begin(), out.end(), kUnknownDepth);
+  for (const DepthView& image : images) {
+    if (!Fits(image)) continue;
+    std::size_t offset = 0;
+    for (int c = 0; c < image.camera; ++c) {
+      const Camera& cam = cameras_[static_cast<std::size_t>(c)];
+      offset += static_cast<std::size_t>((cam.height + stride - 1) / stride) *
+                static_cast<std::size_t>((cam.width + stride - 1) / stride);
+    }
+    const Camera& cam = cameras_[static_cast<std::size_t>(image.camera)];
+    const Eigen::Matrix3d R = cam.X_RigCam.linear();
+    const Eigen::Vector3d t = cam.X_RigCam.translation();
+    std::size_t k = offset;
+    for (int v = 0; v < image.height; v += stride) {
+      for (int u = 0; u < image.width; u += stride, ++k) {
+        const std::size_t i = static_cast<std::size_t>(v) * image.width + u;
+        const std::uint16_t mm = image.depth_mm[i];
+        const double z = mm * 0.001;
+        out[k] = 0;
+        if (z < options_.min_depth_m || z > options_.max_depth_m) continue;
+        const Eigen::Vector3d p_Rig = R * Eigen::Vector3d(cam.ray_x[i] * z, cam.ray_y[i] * z, z) + t;
+        if (options_.roi.contains(p_Rig)) out[k] = std::min<std::uint16_t>(mm, kUnknownDepth - 1);
+      }
+    }
+  }
+}
+
+double RoiChange(std::span<const std::uint16_t> before, std::span<const std::uint16_t> now,
+                 int min_change_mm) {
+  VB_DEMAND(before.size() == now.size());
+  long changed = 0, either = 0;
+  for (std::size_t k = 0; k < before.size(); ++k) {
+    const std::uint16_t a = before[k], b = now[k];
+    if (a == Fusion::kUnknownDepth || b == Fusion::kUnknownDepth || (a == 0 && b == 0)) continue;
+    ++either;
+    changed += a == 0 || b == 0 || std::abs(int{a} - int{b}) > min_change_mm;
+  }
+  return either == 0 ? 0.0 : static_cast<double>(changed) / static_cast<double>(either);
+}
+
 FusedCloud Fusion::MakeOutput() const {
   FusedCloud out;
   out.points.setZero(3, options_.max_points);

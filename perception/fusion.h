@@ -83,6 +83,16 @@ class Fusion {
   /// every image: a cheap measure of how much stands in the region (presence, departure).
   long CountRoiReadings(std::span<const DepthView> images, int stride) const;
 
+  /// How many samples RoiDepths writes at @p stride (every camera of the rig).
+  std::size_t RoiSampleCount(int stride) const;
+
+  /// Every @p stride-th pixel of every camera of the rig, in camera order: its depth in mm
+  /// when the reading lies in the region of interest, 0 when it does not or there is none,
+  /// kUnknownDepth for a camera not in @p images. A cheap picture of what hangs there.
+  /// @pre out.size() == RoiSampleCount(stride).
+  static constexpr std::uint16_t kUnknownDepth = 0xFFFF;
+  void RoiDepths(std::span<const DepthView> images, int stride, std::span<std::uint16_t> out) const;
+
   /// An output cloud with this fusion's capacity.
   FusedCloud MakeOutput() const;
 
@@ -117,5 +127,12 @@ class Fusion {
   Eigen::Matrix3Xd centroid_;
   int num_voxels_ = 0;
 };
+
+/// The fraction of the samples (Fusion::RoiDepths, cameras known in both) with a reading in
+/// the region of interest in either picture whose reading appeared, vanished or moved by more
+/// than @p min_change_mm: 0 for the same scene, near 1 for another object. 0 when neither
+/// picture has a reading. @pre before.size() == now.size().
+double RoiChange(std::span<const std::uint16_t> before, std::span<const std::uint16_t> now,
+                 int min_change_mm);
 
 }  // namespace vb::perception

@@ -70,10 +70,12 @@ struct CutLinesCounter {
     if (m->sequence <= last_sequence) ++out_of_order;
     last_sequence = m->sequence;
     ++received;
-    std::printf("lcm-listen: %s seq %lld carcass %s: %d cuts, %d parts, saw %s: %s\n",
+    static const char* kVerdicts[] = {"accepted", "rejected", "unconfirmed", "refused"};
+    const char* verdict = m->saw_verdict >= 0 && m->saw_verdict < 4 ? kVerdicts[m->saw_verdict]
+                                                                     : "unknown verdict";
+    std::printf("lcm-listen: %s seq %lld carcass %s: %d cuts, %d parts, saw verdict %s: %s\n",
                 channel.c_str(), static_cast<long long>(m->sequence), m->carcass_id.c_str(),
-                m->num_cuts, m->num_parts, m->waypoints_sent ? "sent" : "not sent",
-                m->status.c_str());
+                m->num_cuts, m->num_parts, verdict, m->status.c_str());
   }
   int received = 0, invalid = 0, out_of_order = 0;
   std::int64_t last_sequence = 0;
@@ -87,7 +89,7 @@ int RunLcmPublish(const LcmPublishOptions& options) {
   message.carcass_id = options.carcass_id;
   message.template_id = options.template_id;
   message.template_version = 1;
-  message.waypoints_sent = false;
+  message.saw_verdict = vbutcher::cut_lines_t::REFUSED;
   message.status = "published by vbutcher lcm-publish";
   io::LcmPublisher publisher(options.url);
   for (int i = 0; i < options.count; ++i) {

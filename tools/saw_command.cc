@@ -1,5 +1,7 @@
 #include "tools/saw_command.h"
 
+#include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -11,6 +13,7 @@
 #include "io/error.h"
 #include "io/saw_controller.h"
 #include "io/socketcan.h"
+#include "io/unix_frame_link.h"
 
 namespace vb::tools {
 namespace {
@@ -42,8 +45,10 @@ std::uint64_t Mix(std::uint64_t x) {
 
 }  // namespace
 
-int RunSawSim(const SawSimOptions& options) {
-  io::SocketCan can(options.interface);
+namespace {
+
+template <typename Link>
+int SawSimOn(Link& can, const SawSimOptions& options) {
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
   saw::SawController controller;
@@ -54,7 +59,10 @@ int RunSawSim(const SawSimOptions& options) {
   if (!options.ids_out.empty() && ids == nullptr)
     throw InputError("saw-sim: --ids-out: cannot write " + options.ids_out);
   std::int64_t last_heartbeat_ms = Ms(start);
-  std::printf("saw-sim: listening on %s\n", options.interface.c_str());
+  std::int64_t safe_stop_deadline_ms = 0;
+  // How late waits returned, 1 ms buckets up to 1 s.
+  std::array<long, 1001> late_ms{};
+  std::printf("saw-sim: listening on %s\n", can.interface().c_str());
   std::fflush(stdout);
   auto act = [&](const saw::SawController::Event& e, std::int64_t now) {
     using Kind = saw::SawController::Event::Kind;
@@ -65,8 +73,10 @@ int RunSawSim(const SawSimOptions& options) {
     }
     if (e.kind == Kind::kSafeStopEntered) {
       std::printf(
-          "saw-sim: t=%lld ms SAFE STOP %lld ms after the last heartbeat, at epoch_ms %lld\n",
+          "saw-sim: t=%lld ms SAFE STOP %lld ms after the last heartbeat, %lld ms after its "
+          "deadline, at epoch_ms %lld\n",
           static_cast<long long>(now - Ms(start)), static_cast<long long>(now - last_heartbeat_ms),
+          static_cast<long long>(std::max<std::int64_t>(0, now - safe_stop_deadline_ms)),
           static_cast<long long>(EpochMs()));
     } else if (!options.quiet || e.kind != Kind::kFrameRejected) {
       std::printf("saw-sim: t=%lld ms %s\n", static_cast<long long>(now - Ms(start)),
@@ -83,10 +93,16 @@ int RunSawSim(const SawSimOptions& options) {
     const auto now = Clock::now();
     if (options.seconds > 0 && now - start > std::chrono::duration<double>(options.seconds)) break;
     // Wake at the controller's next deadline at the latest, so safe stop is never late.
-    const std::int64_t wake_ms = std::min(controller.NextDeadlineMs(), Ms(now) + 50);
+    const std::int64_t next_deadline_ms = controller.NextDeadlineMs();
+    if (!controller.safe_stop()) safe_stop_deadline_ms = controller.HeartbeatDeadlineMs();
+    const std::int64_t wake_ms = std::min(next_deadline_ms, Ms(now) + 50);
     const auto deadline = Clock::time_point(std::chrono::milliseconds(wake_ms));
     saw::Frame frame;
-    switch (can.Receive(&frame, deadline)) {
+    const auto result = can.Receive(&frame, deadline);
+    if (result == io::SocketCan::ReceiveResult::kTimeout)
+      ++late_ms[static_cast<std::size_t>(
+          std::clamp<std::int64_t>(Ms(Clock::now()) - wake_ms, 0, 1000))];
+    switch (result) {
       case io::SocketCan::ReceiveResult::kFrame: {
         const std::int64_t t = Ms(Clock::now());
         const auto e = controller.OnFrame(frame, t);
@@ -120,7 +136,31 @@ int RunSawSim(const SawSimOptions& options) {
       by(Check::kWrongSequence),
       by(Check::kBadCounter) + by(Check::kBadLength) + by(Check::kUnknownId), c.jobs_accepted,
       c.jobs_rejected, c.safe_stops, static_cast<unsigned long long>(accepted_hash));
+  long waits = 0;
+  for (long n : late_ms) waits += n;
+  auto quantile = [&](double q) {
+    long seen = 0;
+    for (std::size_t ms = 0; ms < late_ms.size(); ++ms)
+      if ((seen += late_ms[ms]) > 0 && static_cast<double>(seen) >= q * static_cast<double>(waits))
+        return static_cast<long>(ms);
+    return 0L;
+  };
+  std::printf("saw-sim wake_late_ms p50 %ld p99 %ld max %ld over %ld waits\n", quantile(0.5),
+              quantile(0.99), quantile(1.0), waits);
   return 0;
+}
+
+}  // namespace
+
+int RunSawSim(const SawSimOptions& options) {
+  if (options.unix_path.empty() == options.interface.empty())
+    throw InputError("saw-sim: give either --can IFACE or --unix PATH");
+  if (!options.unix_path.empty()) {
+    io::UnixFrameLink link(options.unix_path, io::UnixFrameLink::Role::kSaw);
+    return SawSimOn(link, options);
+  }
+  io::SocketCan can(options.interface);
+  return SawSimOn(can, options);
 }
 
 int RunSawSend(const SawSendOptions& options) {

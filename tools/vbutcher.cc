@@ -208,7 +208,11 @@ int main(int argc, char** argv) {
   vb::tools::SawSimOptions saw_sim;
   CLI::App* saw_sim_cmd = app.add_subcommand(
       "saw-sim", "Reference band-saw controller on a CAN interface (checks, acks, safe stop)");
-  saw_sim_cmd->add_option("--can", saw_sim.interface, "CAN interface, e.g. vcan0")->required();
+  auto* sim_can = saw_sim_cmd->add_option("--can", saw_sim.interface, "CAN interface, e.g. vcan0");
+  auto* sim_unix = saw_sim_cmd->add_option(
+      "--unix", saw_sim.unix_path,
+      "Listen on this Unix socket instead (virtualbutcherd: can.interface unix:PATH)");
+  sim_can->excludes(sim_unix);
   saw_sim_cmd->add_option("--seconds", saw_sim.seconds, "Stop after this long (0: on SIGTERM)")
       ->capture_default_str();
   saw_sim_cmd->add_flag("--quiet", saw_sim.quiet, "Log jobs and safe stops, not each bad frame");

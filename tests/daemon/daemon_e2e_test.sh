@@ -18,23 +18,12 @@ work=$(mktemp -d)
 trap 'kill $(jobs -p) 2>/dev/null || true; rm -rf "$work"' EXIT
 fail() { echo "FAIL: $*"; echo "--- daemon log"; cat "$work/daemon.log" 2>/dev/null; exit 1; }
 
-"$vbutcher" synth --out "$work/set" --count 1 --seed 1 >/dev/null
-"$vbutcher" template compile --template "$work/set/template.ply" \
-  --annotations "$work/set/template_annotations.yaml" -o "$work/lamb.vbt" >/dev/null
-"$vbutcher" virtual-rig --out "$work/rig" >/dev/null
-sed -i '/^carcass:/d' "$work/rig/scene.yaml"   # the hook starts empty
-cat >"$work/vbd.yaml" <<YAML
-format: virtualbutcherd-config
-version: 1
-template: lamb.vbt
-rig: rig/rig.yaml
-virtual_scene: rig/scene.yaml
-lcm: {url: "$url"}
-can: {interface: loopback}
-morph: {template_up: [0, 0, 1], rig_up: [0, 0, 1], max_tilt_deg: 45}
-job: {max_result_age_ms: 60000}   # the sanitizer build morphs 20x slower (about 20 s)
-X_SawRig: {translation: [0, 0, 1.8], rotation_wxyz: [1, 0, 0, 0]}
-YAML
+source "$(dirname "$0")/virtual_line.sh"
+virtual_line "$vbutcher" "$work"
+# The sanitizer build morphs 20x slower (about 20 s); numbering starts at C000001.
+line_config "$work/vbd.yaml" "$url" loopback \
+  "max_result_age_ms: 60000, morph_deadline_ms: 60000, state_file: job-state"
+printf 'vbutcher-job-state 1\ncarcass 0\nsequence 0\n' >"$work/job-state"
 "$daemon" --config "$work/vbd.yaml" --check-config >/dev/null || fail "--check-config"
 
 # Three carcasses; a listener counts the cut-lines messages. The time limits below only stop
@@ -75,8 +64,9 @@ kill -TERM $daemon_pid
 wait $daemon_pid || fail "the daemon did not stop cleanly on SIGTERM"
 cat "$work/listen.txt"
 grep -q "received 4 invalid 0 out_of_order 0" "$work/listen.txt" || fail "expected 4 valid messages"
-[ "$(grep -c 'carcass C00000[123]:' "$work/listen.txt")" -eq 3 ] || fail "the first three carcasses"
-grep -q "carcass C000004: 0 cuts, 0 parts, saw not sent: camera cam1 is \(frozen\|missing\)" "$work/listen.txt" ||
+[ "$(grep -c 'carcass C00000[123]: .* saw verdict accepted: accepted' "$work/listen.txt")" -eq 3 ] ||
+  fail "the first three carcasses were not all accepted by the saw"
+grep -q "carcass C000004: 0 cuts, 0 parts, saw verdict refused: camera cam1 was \(frozen\|missing\)" "$work/listen.txt" ||
   fail "the carcass seen with a camera down was not refused naming the camera"
 grep -q "stopped after 4 jobs" "$work/daemon.log" || fail "daemon job count"
 # Cut planes against the truth: distance of each true plane's point to the predicted plane

@@ -14,6 +14,7 @@
 
 #include "daemon/job.h"
 #include "daemon/saw_link.h"
+#include "daemon/saw_session.h"
 #include "io/lcm_publisher.h"
 #include "morph/morph_carcass.h"
 #include "perception/carcass_generator.h"
@@ -147,6 +148,7 @@ TEST_F(MemoryBudgetTest, AFullArenaFallsBackToTheHeapAndCountsIt) {
 TEST_F(MemoryBudgetTest, SteadyStateJobsAllocateOnlyFromTheArenaAndGiveItAllBack) {
   io::LcmPublisher publisher("memq://");
   std::unique_ptr<SawLink> saw = MakeSawLink("loopback");
+  SawSession session(saw.get(), {});
   morph::MorphOptions options;
   options.coarse.upright.enabled = true;
   std::vector<Eigen::Matrix3Xd> clouds;
@@ -181,17 +183,18 @@ TEST_F(MemoryBudgetTest, SteadyStateJobsAllocateOnlyFromTheArenaAndGiveItAllBack
         io::saw::Job job;
         std::string why = MakeSawJob(result, Eigen::Isometry3d::Identity(), 0.6, number,
                                      static_cast<std::uint8_t>(number), &job);
+        Verdict verdict = Verdict::kRefused;
         if (why.empty()) {
-          io::saw::Protector protector;
-          std::array<io::saw::Frame, io::saw::kMaxJobFrames> frames;
-          const int count = io::saw::EncodeJob(job, &protector, &frames);
-          for (int i = 0; i < count; ++i)
-            if (!saw->Send(frames[static_cast<std::size_t>(i)],
-                           SawLink::Clock::now() + std::chrono::milliseconds(20)))
-              why = "a CAN frame missed its deadline";
+          // The morph outlasted the saw's heartbeat timeout: the first heartbeat finds it in
+          // safe stop, three more take it out.
+          for (std::uint32_t k = 0; k < 4; ++k)
+            session.SendHeartbeat(io::saw::DaemonState::kReady, 100 * (4 * number + k));
+          const JobOutcome outcome = session.SendJob(job);
+          verdict = outcome.verdict;
+          why = outcome.reason;
         }
-        message.waypoints_sent = why.empty();
-        message.status = why.empty() ? "ok" : why;
+        message.saw_verdict = static_cast<std::int8_t>(verdict);
+        message.status = why.empty() ? ToString(verdict) : why;
         publisher.Publish(message);
         after.push_back({GetMemoryBudgetStats(), message.status});
       }
@@ -199,7 +202,7 @@ TEST_F(MemoryBudgetTest, SteadyStateJobsAllocateOnlyFromTheArenaAndGiveItAllBack
     }
   });
   ASSERT_EQ(after.size(), clouds.size());
-  for (std::size_t j = 0; j < after.size(); ++j) EXPECT_EQ(after[j].status, "ok") << "job " << j;
+  for (std::size_t j = 0; j < after.size(); ++j) EXPECT_EQ(after[j].status, "accepted") << "job " << j;
   const MemoryBudgetStats& first = after.front().stats;
   for (std::size_t j = 1; j < after.size(); ++j) {
     const MemoryBudgetStats& s = after[j].stats;

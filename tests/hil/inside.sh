@@ -10,6 +10,7 @@ mkdir -p $t
 export TMPDIR=$t
 jobs=${2:-2000}
 vbd_config=${3:-}   # a virtualbutcherd configuration on vcan0, for part D
+frames_log=${4:-}   # the daemon's recorded frames (candump -L), for part E
 ip link add dev vcan0 type vcan && ip link set up vcan0
 ip link add dev vcan1 type vcan && ip link set up vcan1
 echo "HIL: vcan up"
@@ -38,7 +39,7 @@ sleep 0.6
 kill -TERM $saw; wait $saw
 kill $dump 2>/dev/null; wait $dump 2>/dev/null
 echo "HIL A candump frames $(wc -l <$t/candump.log)"
-grep -E "SAFE STOP|summary" $t/sawA.log | sed 's/^/HIL A /'
+grep -E "SAFE STOP|summary|wake_late" $t/sawA.log | sed 's/^/HIL A /'
 sort $t/accepted.txt >$t/accepted.sorted
 sort $t/clean.txt >$t/clean.sorted
 echo "HIL A faulted_jobs_accepted $(comm -23 $t/accepted.sorted $t/clean.sorted | wc -l)" \
@@ -57,7 +58,7 @@ killed=$EPOCHREALTIME   # bash's clock, read without forking, right after the ki
 echo "HIL B killed_at_epoch_ms $(( ${killed/./} / 1000 ))"
 sleep 0.6
 kill -TERM $saw; wait $saw
-grep -E "SAFE STOP|summary" $t/sawB.log | sed 's/^/HIL B /'
+grep -E "SAFE STOP|summary|wake_late" $t/sawB.log | sed 's/^/HIL B /'
 
 # C. Faults made by the kernel's CAN gateway between the sender (vcan0) and the saw (vcan1).
 run_c() {  # run_c <label>: 20 jobs through whatever cangw rules are set
@@ -99,5 +100,15 @@ if [ -n "$vbd_config" ]; then
   fi
   kill -TERM $saw; wait $saw
   grep -E "SAFE STOP|safe stop left" $t/sawD.log | sed 's/^/HIL D /'
+fi
+# E. The daemon's own frames, recorded on the host, replayed onto vcan0 at their pace.
+if [ -n "$frames_log" ]; then
+  "$vb" saw-sim --can vcan0 --quiet >$t/sawE.log &
+  saw=$!
+  wait_for $t/sawE.log listening 60
+  canplayer -I "$frames_log" vcan0=can0
+  sleep 0.5
+  kill -TERM $saw; wait $saw
+  grep -E "ACCEPT|reject job|summary" $t/sawE.log | sed 's/^/HIL E /'
 fi
 echo "HIL done"

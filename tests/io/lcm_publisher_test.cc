@@ -16,8 +16,8 @@ vbutcher::cut_lines_t MakeCutLines(int cuts, int points) {
   m.carcass_id = "carcass-42";
   m.template_id = "lamb_template";
   m.template_version = 3;
-  m.waypoints_sent = true;
-  m.status = "ok";
+  m.saw_verdict = vbutcher::cut_lines_t::ACCEPTED;
+  m.status = "accepted";
   for (int c = 0; c < cuts; ++c) {
     vbutcher::cut_t cut;
     cut.name = "cut_" + std::to_string(c);
