@@ -80,6 +80,31 @@ TEST_F(DaemonConfigTest, ReadsTheUprightPriorAndRefusesHalfOfIt) {
   EXPECT_THAT(Error("morph: {upright: yes}\n"), HasSubstr("morph.upright: unknown key"));
 }
 
+TEST_F(DaemonConfigTest, ReadsTheSawLinkAndJobNumberingKeys) {
+  const auto path = dir_.Write(
+      "vbd.yaml", kHead +
+                      "can: {interface: \"unix:/run/vbsaw.sock\", answer_timeout_ms: 400, "
+                      "record: frames.log}\n"
+                      "job: {state_file: job-state, morph_deadline_ms: 1500, "
+                      "new_carcass_change: 0.5}\n");
+  const DaemonConfig c = LoadDaemonConfig(path);
+  EXPECT_EQ(c.can.interface, "unix:/run/vbsaw.sock");
+  EXPECT_EQ(c.can.answer_timeout_ms, 400);
+  EXPECT_EQ(c.can.record, dir_ / "frames.log");
+  EXPECT_EQ(c.job.state_file, dir_ / "job-state");
+  EXPECT_EQ(c.job.morph_deadline_ms, 1500);
+  EXPECT_EQ(c.job.new_carcass_change, 0.5);
+  EXPECT_THAT(Error("can: {answer_timeout_ms: 0}\n"),
+              HasSubstr("can.answer_timeout_ms: value 0 is outside [10, 5000]"));
+  EXPECT_THAT(Error("job: {state_file: nowhere/job-state}\n"),
+              HasSubstr("job.state_file: no folder"));
+  EXPECT_THAT(Error("can: {record: nowhere/frames.log}\n"), HasSubstr("can.record: no folder"));
+  EXPECT_THAT(Error("job: {morph_deadline_ms: 10}\n"),
+              HasSubstr("job.morph_deadline_ms: value 10 is outside [50, 600000]"));
+  EXPECT_THAT(Error("can: {interface: \"unix:/" + std::string(120, 'x') + "\"}\n"),
+              HasSubstr("the socket path is longer than 107 characters"));
+}
+
 TEST_F(DaemonConfigTest, NamesFileLineKeyAndValue) {
   EXPECT_THAT(Error("capture: {fsp: 30}\n"), HasSubstr("vbd.yaml:5: capture.fsp: unknown key"));
   EXPECT_THAT(Error("captur: {fps: 30}\n"), HasSubstr("captur: unknown key"));
@@ -126,8 +151,11 @@ TEST(DaemonConfigShippedTest, TheShippedExampleIsValidOnceItsFilesExist) {
   std::string s = text.str();
   s.replace(s.find("/usr/share/virtualbutcher/lamb.vbt"), 34, "lamb.vbt");
   s.replace(s.find("/etc/virtualbutcher/rig.yaml"), 28, "rig.yaml");
+  s.replace(s.find("/var/lib/virtualbutcher/job-state"), 33, "job-state");
   const DaemonConfig c = LoadDaemonConfig(dir.Write("vbd.yaml", s));
   EXPECT_EQ(c.can.interface, "can0");
+  EXPECT_EQ(c.can.answer_timeout_ms, 250);
+  EXPECT_EQ(c.job.state_file, dir / "job-state");
   EXPECT_TRUE(c.morph.upright.enabled);
 }
 
