@@ -32,8 +32,9 @@ struct JobOptions {
   int morph_deadline_ms = 2000;
   /// While a carcass that became a job hangs there, the fraction of its sampled depth
   /// readings in the region of interest that must change (by more than 40 mm, or appear or
-  /// vanish) for settle_sets frame sets in a row to count as another carcass that replaced it
-  /// without an empty-hook gap. It then becomes a job of its own.
+  /// vanish) for settle_sets frame sets in a row, with the picture holding still (changed by
+  /// less than half this over the last half second), to count as another carcass that
+  /// replaced it without an empty-hook gap. It then becomes a job of its own.
   double new_carcass_change = 0.35;
   /// Last carcass number and job sequence, written before each job goes out, so a restarted
   /// daemon never repeats them (daemon/job_numbers.h). Empty: numbers start from the clock.

@@ -72,6 +72,10 @@ std::filesystem::path UsableStateFile(const std::filesystem::path& path, std::st
 // Stride of the region-of-interest samples that tell a carcass from its replacement.
 constexpr int kChangeStride = 4;
 constexpr int kChangeMm = 40;
+// A changed picture counts as another carcass only once it holds still: compared with the
+// picture this many frame sets earlier (half a second at 30 fps), so a carcass moving out
+// along the rail, whose picture changes as it goes, is not taken for a new one.
+constexpr int kStillSets = 15;
 
 }  // namespace
 
@@ -118,7 +122,12 @@ void Pipeline::CaptureLoop() {
   // What hangs in the region, sampled: at the frame set that became a job, and now.
   std::vector<std::uint16_t> taken_depths(fusion_->RoiSampleCount(kChangeStride));
   std::vector<std::uint16_t> depths(taken_depths.size());
+  // The picture to hold still against: the previous set while a carcass arrives, one up to
+  // kStillSets sets old while it hangs.
+  std::vector<std::uint16_t> earlier_depths(taken_depths.size());
+  int sets_since_earlier = 0;
   int present_sets = 0, absent_sets = 0, changed_sets = 0;
+  double largest_change = 0;  // of the carcass that hangs there, for the log
   long taken_readings = 0;
   bool carcass_taken = false;  // this carcass already became a job
   // The first camera that was not delivering fresh frames in a frame set since the carcass
@@ -166,8 +175,21 @@ void Pipeline::CaptureLoop() {
       for (std::uint16_t d : depths) readings += d != 0 && d != perception::Fusion::kUnknownDepth;
       absent_sets = readings < taken_readings / 4 ? absent_sets + 1 : 0;
       const double change = perception::RoiChange(taken_depths, depths, kChangeMm);
-      changed_sets = change > config_.job.new_carcass_change ? changed_sets + 1 : 0;
+      const bool still = perception::RoiChange(earlier_depths, depths, kChangeMm) <
+                         config_.job.new_carcass_change / 2;
+      if (++sets_since_earlier >= kStillSets) {
+        earlier_depths = depths;  // same size: no allocation
+        sets_since_earlier = 0;
+      }
+      changed_sets = change > config_.job.new_carcass_change && still ? changed_sets + 1 : 0;
+      if (absent_sets == 0) largest_change = std::max(largest_change, change);
       if (absent_sets >= config_.job.settle_sets) {
+        // How much the picture of a carcass that stayed changed: what job.new_carcass_change
+        // must stay above on this line.
+        std::fprintf(stderr,
+                     "<6>virtualbutcherd: the carcass left; while it hung its depth picture "
+                     "changed by at most %.0f %% (a new carcass above %.0f %%)\n",
+                     100 * largest_change, 100 * config_.job.new_carcass_change);
         carcass_taken = false;
         present_sets = 0;
         capture_fault.clear();
@@ -185,10 +207,16 @@ void Pipeline::CaptureLoop() {
     const std::int64_t t0 = perception::MonotonicNs();
     const perception::FusionStats stats = fusion_->Fuse(set, &cloud);
     const double fusion_s = SecondsSince(t0);
-    // Presence: a carcass hangs in the ROI when enough fused points are there, for
-    // settle_sets frame sets in a row.
+    // Presence: a carcass hangs in the ROI when enough fused points are there, and the
+    // region's picture holds still from one frame set to the next (not while it swings in, or
+    // while a camera has yet to show it), for settle_sets frame sets in a row. The picture
+    // then taken is what a replacement is later told from.
+    fusion_->RoiDepths(set, kChangeStride, depths);
+    const bool still = perception::RoiChange(earlier_depths, depths, kChangeMm) <
+                       config_.job.new_carcass_change / 2;
+    earlier_depths = depths;  // same size: no allocation
     if (cloud.size >= config_.job.presence_min_points) {
-      ++present_sets;
+      present_sets = still ? present_sets + 1 : 0;
       if (stale_camera >= 0 && capture_fault.empty()) {
         capture_fault = "camera ";
         capture_fault += capture.calibration(stale_camera).name;
@@ -203,7 +231,10 @@ void Pipeline::CaptureLoop() {
     if (present_sets < config_.job.settle_sets) continue;
     carcass_taken = true;
     absent_sets = changed_sets = 0;
-    fusion_->RoiDepths(set, kChangeStride, taken_depths);
+    largest_change = 0;
+    taken_depths = depths;
+    earlier_depths = depths;
+    sets_since_earlier = 0;
     taken_readings = 0;
     for (std::uint16_t d : taken_depths)
       taken_readings += d != 0 && d != perception::Fusion::kUnknownDepth;
