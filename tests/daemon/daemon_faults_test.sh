@@ -18,6 +18,9 @@ fail() {
   exit 1
 }
 scene=$work/rig/scene.yaml
+# Seconds a carcass of case 2 hangs: longer where a build is slower (scripts/test --tsan sets
+# VB_TEST_SLOWDOWN), so that the replacement is still there when it can be taken.
+hang_s=$((4 * ${VB_TEST_SLOWDOWN:-1}))
 
 source "$(dirname "$0")/virtual_line.sh"
 virtual_line "$vbutcher" "$work"
@@ -38,7 +41,9 @@ start_daemon() {  # start_daemon <config> <log>
   grep -q "LCM on" "$2" || fail "the daemon did not come up"
   sleep 1  # the saw leaves safe stop after three heartbeats; the cameras deliver
 }
-wait_for() {  # wait_for <file> <count> <pattern> <seconds>
+# wait_for <file> <count> <pattern> <seconds>: the limits only stop a hang (a ThreadSanitizer
+# build morphs in about 13 s); each wait ends as soon as its line is there.
+wait_for() {
   for _ in $(seq $(($4 * 10))); do
     [ "$(grep -c -- "$3" "$1" || true)" -ge "$2" ] && return 0
     sleep 0.1
@@ -63,7 +68,7 @@ sleep 1.5  # too short a visit to become a job; it leaves rig/carcass_100.ply be
 { cat "$scene"; echo "carcass: carcass_100.ply"; echo "faults: {VB0002: frozen}"; } >"$work/with_carcass.yaml"
 before=$(grep -c "saw verdict" "$log" || true)
 mv "$work/with_carcass.yaml" "$scene"
-wait_for "$log" $((before + 1)) "saw verdict" 60
+wait_for "$log" $((before + 1)) "saw verdict" 240
 grep -q "C[0-9]*: saw verdict refused: camera cam1 was \(repeating its last frame\|frozen\) while the carcass was captured" "$log" ||
   fail "1: the carcass captured with a frozen camera was not refused naming it"
 sed -i -e '/^faults:/d' -e '/^  VB[0-9]*:/d' -e '/^carcass:/d' "$scene"
@@ -71,8 +76,8 @@ sleep 3  # the camera recovers (stream restart)
 echo "1 ok: $(grep -o 'saw verdict refused: camera.*captured' "$log" | head -1)"
 
 # 2. Two carcasses with no empty hook between them: two jobs, both accepted.
-hang 110 4 0 2
-wait_for "$log" $((before + 3)) "saw verdict" 90
+hang 110 "$hang_s" 0 2
+wait_for "$log" $((before + 3)) "saw verdict" 400
 grep -q "changed without an empty-hook gap" "$log" || fail "2: the replacement was not noticed"
 [ "$(grep -c 'saw verdict accepted' "$log")" -eq 2 ] || fail "2: not two accepted jobs"
 wait $line
@@ -81,7 +86,7 @@ echo "2 ok: $(grep -o 'changed without an empty-hook gap ([0-9]* %' "$log")"
 
 # 3. SIGTERM while the next carcass is being morphed.
 hang 120 60 0
-wait_for "$log" 3 ": morphing " 60
+wait_for "$log" 3 ": morphing " 240
 kill -TERM $daemon_pid
 wait $daemon_pid || fail "3: the daemon did not exit cleanly on SIGTERM"
 grep -q "saw verdict refused: shutting down" "$log" || fail "3: the job under way was not refused"
@@ -95,7 +100,7 @@ echo "3 ok: refused on shutdown; the saw got 2 jobs in all"
 start_saw "$work/saw4.log"
 start_daemon "$work/vbd_deadline.yaml" "$work/daemon4.log"
 hang 130 60 0
-wait_for "$work/daemon4.log" 1 "saw verdict" 60
+wait_for "$work/daemon4.log" 1 "saw verdict" 240
 grep -q "saw verdict refused: morph abandoned: still running after 50 ms" "$work/daemon4.log" ||
   fail "4: the late morph was not abandoned"
 kill -TERM $daemon_pid
