@@ -249,7 +249,14 @@ void Pipeline::CaptureLoop() {
     }
     {
       std::lock_guard<std::mutex> lock(slot_mutex_);
-      if (slot_full_) ++jobs_replaced_;  // newest wins
+      if (slot_full_) {  // newest wins: the line runs faster than the morph
+        ++jobs_replaced_;
+        std::fprintf(stderr,
+                     "<4>virtualbutcherd: a carcass waiting for the morph was replaced by a "
+                     "newer one and gets no job (%ld so far): the line runs faster than the "
+                     "morph\n",
+                     jobs_replaced_);
+      }
       slot_cloud_.points.leftCols(cloud.size) = cloud.points.leftCols(cloud.size);
       slot_cloud_.normals.leftCols(cloud.size) = cloud.normals.leftCols(cloud.size);
       slot_cloud_.size = cloud.size;
