@@ -27,6 +27,10 @@ virtual_line "$vbutcher" "$work"
 job_keys="state_file: job-state, max_result_age_ms: 20000"
 line_config "$work/vbd.yaml" memq:// "unix:$work/saw.sock" "$job_keys, morph_deadline_ms: 20000"
 line_config "$work/vbd_deadline.yaml" memq:// "unix:$work/saw.sock" "$job_keys, morph_deadline_ms: 50"
+# The frozen check's silence limit scales too (case 1 is caught by the repeated frame at once).
+for f in "$work/vbd.yaml" "$work/vbd_deadline.yaml"; do
+  echo "capture: {frozen_periods: $((5 * ${VB_TEST_SLOWDOWN:-1}))}" >>"$f"
+done
 
 start_saw() {  # start_saw <log>
   "$vbutcher" saw-sim --unix "$work/saw.sock" --quiet >"$1" &
