@@ -175,9 +175,10 @@ int main(int argc, char** argv) {
   std::fprintf(stderr,
                "<6>virtualbutcherd: stopped after %d jobs; saw verdicts: accepted %ld, rejected "
                "%ld, unconfirmed %ld, refused %ld; saw answers %ld (%ld late, %ld unmatched, %ld "
-               "failing their check)\n",
+               "failing their check); heartbeats %ld sent, %ld dropped\n",
                jobs, v.accepted, v.rejected, v.unconfirmed, v.refused, link.answers,
-               link.answers_late, link.answers_unmatched, link.answers_bad);
+               link.answers_late, link.answers_unmatched, link.answers_bad, link.heartbeats_sent,
+               link.heartbeats_dropped);
   if (const auto* loopback = dynamic_cast<const vb::daemon::LoopbackSawLink*>(saw.get())) {
     const vb::io::saw::SawController::Counters c = loopback->counters();
     std::fprintf(stderr,

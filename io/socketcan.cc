@@ -17,12 +17,6 @@
 namespace vb::io {
 namespace {
 
-int MillisecondsUntil(SocketCan::Clock::time_point deadline) {
-  const auto left =
-      std::chrono::duration_cast<std::chrono::milliseconds>(deadline - SocketCan::Clock::now());
-  return left.count() <= 0 ? 0 : static_cast<int>(std::min<long>(left.count(), 1 << 30));
-}
-
 std::string DescribeErrorFrame(const can_frame& f, bool* bus_off) {
   std::string what;
   if (f.can_id & CAN_ERR_BUSOFF) {
@@ -50,6 +44,12 @@ std::string DescribeErrorFrame(const can_frame& f, bool* bus_off) {
 }
 
 }  // namespace
+
+int MillisecondsUntil(std::chrono::steady_clock::time_point deadline) {
+  const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+      deadline - std::chrono::steady_clock::now());
+  return left.count() <= 0 ? 0 : static_cast<int>(std::min<long>(left.count(), 1 << 30));
+}
 
 SocketCan::SocketCan(const std::string& interface) : interface_(interface) {
   if (interface.empty() || interface.size() >= IFNAMSIZ)

@@ -10,6 +10,9 @@ namespace vb::io {
 
 /// A raw SocketCAN socket on one interface: non-blocking, every call bounded by a deadline,
 /// error frames enabled so bus-off and controller problems are reported, not silent.
+/// Milliseconds from now until @p deadline, 0 when it has passed (for poll()).
+int MillisecondsUntil(std::chrono::steady_clock::time_point deadline);
+
 class SocketCan {
  public:
   using Clock = std::chrono::steady_clock;

@@ -14,12 +14,6 @@ namespace {
 
 constexpr std::size_t kDatagramBytes = 16;  // as struct can_frame: id, dlc, 3 reserved, data
 
-int MillisecondsUntil(UnixFrameLink::Clock::time_point deadline) {
-  const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
-      deadline - UnixFrameLink::Clock::now());
-  return left.count() <= 0 ? 0 : static_cast<int>(std::min<long>(left.count(), 1 << 30));
-}
-
 }  // namespace
 
 UnixFrameLink::UnixFrameLink(const std::string& path, Role role)
@@ -70,10 +64,7 @@ UnixFrameLink::SendResult UnixFrameLink::Send(const saw::Frame& frame, Clock::ti
   bytes[4] = frame.dlc;
   std::memcpy(bytes + 8, frame.data.data(), 8);
   while (true) {
-    if (Clock::now() >= deadline) {
-      ++dropped_;
-      return SendResult::kDropped;
-    }
+    if (Clock::now() >= deadline) return SendResult::kDropped;
     const ssize_t n =
         role_ == Role::kSaw
             ? sendto(fd_, bytes, sizeof bytes, 0, reinterpret_cast<const sockaddr*>(&peer_),

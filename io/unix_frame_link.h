@@ -32,8 +32,6 @@ class UnixFrameLink {
   SendResult Send(const saw::Frame& frame, Clock::time_point deadline);
   ReceiveResult Receive(saw::Frame* frame, Clock::time_point deadline);
 
-  long dropped() const { return dropped_; }
-  bool bus_off() const { return false; }
   const std::string& last_error() const { return last_error_; }
   const std::string& interface() const { return name_; }
 
@@ -44,7 +42,6 @@ class UnixFrameLink {
   sockaddr_un path_{};  // the saw's socket
   sockaddr_un peer_{};  // the saw's: whom it last heard from
   socklen_t peer_length_ = 0;
-  long dropped_ = 0;
   std::string last_error_;
 };
 
