@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
+#include <cstdio>
 #include <string>
 
 #include "io/error.h"
@@ -25,7 +27,40 @@ FileFormat FormatFromPath(const std::filesystem::path& path) {
                    "' (expected .ply, .off, .obj, .pcd or .xyz)");
 }
 
-TriangleMesh ReadMesh(const std::filesystem::path& path, const ReadLimits& limits) {
+std::string DropInvalidNormals(const std::string& source, Eigen::Matrix3Xd* normals) {
+  if (normals->cols() == 0) return {};
+  Eigen::Index invalid = 0;
+  for (Eigen::Index i = 0; i < normals->cols(); ++i) {
+    const double length = normals->col(i).norm();
+    if (!std::isfinite(length) || length < 1e-6) {
+      ++invalid;
+    } else if (std::abs(length - 1.0) > 1e-9) {
+      normals->col(i) /= length;
+    }
+  }
+  if (invalid == 0) return {};
+  const Eigen::Index total = normals->cols();
+  normals->resize(3, 0);
+  return source + ": " + std::to_string(invalid) + " of " + std::to_string(total) +
+         " normals are zero-length or not finite; the file's normals are ignored (estimated from "
+         "the points where needed)";
+}
+
+namespace {
+
+void Report(const std::string& warning, std::vector<std::string>* warnings) {
+  if (warning.empty()) return;
+  if (warnings != nullptr) {
+    warnings->push_back(warning);
+  } else {
+    std::fprintf(stderr, "warning: %s\n", warning.c_str());
+  }
+}
+
+}  // namespace
+
+TriangleMesh ReadMesh(const std::filesystem::path& path, const ReadLimits& limits,
+                      std::vector<std::string>* warnings) {
   TriangleMesh mesh;
   switch (FormatFromPath(path)) {
     case FileFormat::kPly:
@@ -43,10 +78,12 @@ TriangleMesh ReadMesh(const std::filesystem::path& path, const ReadLimits& limit
   }
   if (mesh.num_faces() == 0)
     throw InputError(path.string() + ": has no faces, but a triangle mesh is needed");
+  Report(DropInvalidNormals(path.string(), &mesh.N), warnings);
   return mesh;
 }
 
-PointCloud ReadCloud(const std::filesystem::path& path, const ReadLimits& limits) {
+PointCloud ReadCloud(const std::filesystem::path& path, const ReadLimits& limits,
+                     std::vector<std::string>* warnings) {
   PointCloud cloud;
   const FileFormat format = FormatFromPath(path);
   if (format == FileFormat::kPcd) {
@@ -61,6 +98,7 @@ PointCloud ReadCloud(const std::filesystem::path& path, const ReadLimits& limits
     cloud.normals = std::move(mesh.N);
   }
   if (cloud.size() == 0) throw InputError(path.string() + ": holds no points");
+  Report(DropInvalidNormals(path.string(), &cloud.normals), warnings);
   return cloud;
 }
 

@@ -1,6 +1,8 @@
 #pragma once
 
 #include <filesystem>
+#include <string>
+#include <vector>
 
 #include "io/ply.h"
 #include "io/read_limits.h"
@@ -15,14 +17,25 @@ enum class FileFormat { kPly, kOff, kObj, kPcd, kXyz };
 /// @throws InputError when the extension is none of the above.
 FileFormat FormatFromPath(const std::filesystem::path& path);
 
-/// Reads a triangle mesh from PLY, OFF or OBJ, keeping vertex order.
+/// Normals read from a file are checked, never trusted: when any is zero-length (under 1e-6)
+/// or not finite, all of them are dropped (@p normals becomes 3 by 0, so that whoever needs
+/// normals estimates them from the points) and the warning says so, naming @p source and the
+/// count; otherwise those not of unit length are rescaled and the warning is empty.
+/// @param[in,out] normals  3 by #V, or 3 by 0 (nothing to check).
+std::string DropInvalidNormals(const std::string& source, Eigen::Matrix3Xd* normals);
+
+/// Reads a triangle mesh from PLY, OFF or OBJ, keeping vertex order. Its normals pass
+/// DropInvalidNormals; a warning goes to @p warnings, or to stderr when it is null.
 /// @throws InputError naming the file (and line or element) on bad content, on a format that
 ///   holds no faces (PCD, XYZ), or on a file with no faces.
-TriangleMesh ReadMesh(const std::filesystem::path& path, const ReadLimits& limits = {});
+TriangleMesh ReadMesh(const std::filesystem::path& path, const ReadLimits& limits = {},
+                      std::vector<std::string>* warnings = nullptr);
 
-/// Reads a point cloud from any supported format; a mesh's vertices become the points.
+/// Reads a point cloud from any supported format; a mesh's vertices become the points. Its
+/// normals pass DropInvalidNormals, as ReadMesh.
 /// @throws InputError as ReadMesh, or when the cloud is empty.
-PointCloud ReadCloud(const std::filesystem::path& path, const ReadLimits& limits = {});
+PointCloud ReadCloud(const std::filesystem::path& path, const ReadLimits& limits = {},
+                     std::vector<std::string>* warnings = nullptr);
 
 struct WriteOptions {
   PlyEncoding ply_encoding = PlyEncoding::kBinaryLittleEndian;

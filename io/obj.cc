@@ -39,7 +39,7 @@ TriangleMesh ReadObj(const std::filesystem::path& path, const ReadLimits& limits
     if (keyword == "v") {
       for (std::size_t k = 1; k <= 3; ++k) positions.push_back(scan.Double(k, "vertex coordinate"));
     } else if (keyword == "vn") {
-      for (std::size_t k = 1; k <= 3; ++k) normals.push_back(scan.Double(k, "normal component"));
+      for (std::size_t k = 1; k <= 3; ++k) normals.push_back(scan.DoubleOrNonFinite(k, "normal component"));
     } else if (keyword == "f") {
       const std::size_t n = scan.tokens().size() - 1;
       if (n < 3 || n > static_cast<std::size_t>(limits.max_polygon_vertices)) {

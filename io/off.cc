@@ -43,7 +43,7 @@ TriangleMesh ReadOff(const std::filesystem::path& path, const ReadLimits& limits
       mesh.V(k, i) = scan.Double(static_cast<std::size_t>(k), "vertex coordinate");
     if (with_normals) {
       for (int k = 0; k < 3; ++k)
-        mesh.N(k, i) = scan.Double(static_cast<std::size_t>(3 + k), "vertex normal");
+        mesh.N(k, i) = scan.DoubleOrNonFinite(static_cast<std::size_t>(3 + k), "vertex normal");
     }
   }
   std::vector<int> triangles;

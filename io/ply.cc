@@ -279,9 +279,9 @@ TriangleMesh ReadPly(const std::filesystem::path& path, const ReadLimits& limits
   if (s.normal_seen[0] && s.normal_seen[1] && s.normal_seen[2]) mesh.N = std::move(s.N);
   mesh.F = internal::FacesFromFlat(s.triangles);
   for (Eigen::Index i = 0; i < mesh.V.cols(); ++i) {
-    if (!mesh.V.col(i).allFinite() || (mesh.has_normals() && !mesh.N.col(i).allFinite())) {
-      throw InputError(s.source + ": vertex " + std::to_string(i) +
-                       ": non-finite coordinate or normal");
+    // Normals are checked by ReadMesh and ReadCloud (DropInvalidNormals), not refused here.
+    if (!mesh.V.col(i).allFinite()) {
+      throw InputError(s.source + ": vertex " + std::to_string(i) + ": non-finite coordinate");
     }
   }
   return mesh;

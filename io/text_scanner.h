@@ -26,6 +26,9 @@ class LineScanner {
 
   /// Parses token @p i as a finite double; @p what names the value in the error.
   double Double(std::size_t i, std::string_view what) const;
+  /// As Double, but "nan" and "inf" are returned, not refused: for values the caller checks
+  /// itself (normals, which ReadMesh and ReadCloud validate and drop).
+  double DoubleOrNonFinite(std::size_t i, std::string_view what) const;
   /// Parses token @p i (or a prefix of it up to @p stop) as a signed integer.
   std::int64_t Int(std::size_t i, std::string_view what) const;
   /// Parses a string (part of a token) as a signed integer.

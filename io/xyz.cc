@@ -24,7 +24,7 @@ PointCloud ReadXyz(const std::filesystem::path& path, const ReadLimits& limits) 
                 std::to_string(n));
     }
     for (std::size_t k = 0; k < n; ++k)
-      values.push_back(scan.Double(k, k < 3 ? "coordinate" : "normal component"));
+      values.push_back(k < 3 ? scan.Double(k, "coordinate") : scan.DoubleOrNonFinite(k, "normal component"));
   }
   PointCloud cloud;
   if (columns == 0) return cloud;

@@ -1,6 +1,10 @@
 #include "tools/morph_command.h"
 
+#include <Eigen/Geometry>
+#include <algorithm>
 #include <chrono>
+#include <numbers>
+#include <vector>
 #include <cstdio>
 
 #include "io/annotations.h"
@@ -11,6 +15,7 @@
 #include "morph/dense_alignment.h"
 #include "morph/morph_carcass.h"
 #include "morph/morph_report.h"
+#include "morph/surface_distance.h"
 #include "morph/template_artifact.h"
 #include "morph/template_model.h"
 
@@ -102,6 +107,30 @@ int RunMorphCommand(const MorphCommandOptions& options) {
         dense.noise, used.c_str(), dense.normals_seconds, dense.rounds.size(), dense.total_seconds);
   }
   if (full) {
+    // How the morph sits on the scan, with no ground truth: every scan point's distance to the
+    // morphed surface, and the similarity that best takes the template onto the morph.
+    const morph::SurfaceDistance distance(dense.mesh);
+    std::vector<double> d(static_cast<std::size_t>(target.points.cols()));
+    for (Eigen::Index i = 0; i < target.points.cols(); ++i) {
+      d[static_cast<std::size_t>(i)] = distance(target.points.col(i));
+    }
+    std::sort(d.begin(), d.end());
+    double sum = 0;
+    for (double x : d) sum += x;
+    std::printf("morph: fit: scan to morph distance mean %.1f mm, p95 %.1f mm, max %.1f mm (%zu "
+                "scan points, metres assumed)\n",
+                1000 * sum / static_cast<double>(d.size()),
+                1000 * d[std::min(d.size() - 1, d.size() * 95 / 100)], 1000 * d.back(), d.size());
+    const morph::Similarity placed =
+        morph::Similarity::FromUmeyama(Eigen::umeyama(model.mesh.V, dense.mesh.V, true));
+    const Eigen::AngleAxisd turn(placed.R);
+    const Eigen::Vector3d up = placed.R.col(2);
+    std::printf("morph: placement: scale %.3f, turned %.1f deg about (%+.3f %+.3f %+.3f), the "
+                "template's +z now (%+.3f %+.3f %+.3f), centre (%.3f %.3f %.3f)\n",
+                placed.scale, turn.angle() * 180.0 / std::numbers::pi, turn.axis().x(),
+                turn.axis().y(), turn.axis().z(), up.x(), up.y(), up.z(),
+                dense.mesh.V.rowwise().mean().x(), dense.mesh.V.rowwise().mean().y(),
+                dense.mesh.V.rowwise().mean().z());
     std::printf(
         "morph: check: ambiguity %.3f, unexplained %.3f, stretch %.3f -> confidence %.2f%s%s\n",
         result.check.ambiguity, result.check.unexplained, result.check.stretch,
@@ -119,9 +148,12 @@ int RunMorphCommand(const MorphCommandOptions& options) {
           c.slide, c.slide_error, c.slide_band, c.band_slide, c.band_slide_error, c.coverage,
           c.confidence);
     }
+    double total_volume = 0;
+    for (const io::PartMeasure& part : parts) total_volume += part.volume;
     for (std::size_t k = 0; k < parts.size(); ++k) {
-      std::printf("part %-10s volume %.6g area %.6g\n", annotations.parts[k].c_str(),
-                  parts[k].volume, parts[k].area);
+      std::printf("part %-10s volume %.6g (%.1f %% of the carcass) area %.6g\n",
+                  annotations.parts[k].c_str(), parts[k].volume,
+                  total_volume > 0 ? 100 * parts[k].volume / total_volume : 0.0, parts[k].area);
     }
     if (!options.cuts_path.empty())
       morph::WriteCutsReport(options.cuts_path, annotations, cuts, parts, result.check);

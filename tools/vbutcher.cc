@@ -8,6 +8,7 @@
 #include "io/error.h"
 #include "perception/synthetic_set.h"
 #include "tools/bench_command.h"
+#include "tools/bench_shapes.h"
 #include "tools/capture_command.h"
 #include "tools/lcm_command.h"
 #include "tools/morph_command.h"
@@ -205,6 +206,41 @@ int main(int argc, char** argv) {
   capture_bench_cmd->add_option("--csv", capture_bench.csv, "One row per frame set")
       ->capture_default_str();
 
+  vb::tools::ShapeBenchOptions shape_bench;
+  CLI::App* shape_bench_cmd = bench_cmd->add_subcommand(
+      "shapes",
+      "The morph on third-party rigged bodies posed by their own rigs, and synthetic lambs: "
+      "identity, rigid bound, coarse, full (docs/benchmarks.md)");
+  shape_bench_cmd->add_option("--csv", shape_bench.csv, "One row per shape, pair, sigma, variant, method")
+      ->capture_default_str();
+  shape_bench_cmd->add_option("--png", shape_bench.png, "Picture (default: the CSV's name, .png)");
+  shape_bench_cmd->add_flag("--no-png", shape_bench.no_png, "Skip the picture");
+  shape_bench_cmd->add_option("--sigmas-mm", shape_bench.sigmas_mm, "Noise along normals, at a 1.7 m body")
+      ->delimiter(',')
+      ->capture_default_str();
+  shape_bench_cmd->add_option("--variants", shape_bench.variants, "clean, shadow")
+      ->delimiter(',')
+      ->capture_default_str();
+  shape_bench_cmd->add_option("--shapes", shape_bench.shapes,
+                              "Only these (bcn, sydney, faerie, wuson, spiderblob, lamb)")
+      ->delimiter(',');
+  shape_bench_cmd->add_option("--lamb-pairs", shape_bench.lamb_pairs, "Synthetic lamb targets")
+      ->capture_default_str();
+  shape_bench_cmd->add_option("--max-pairs", shape_bench.max_pairs, "Per shape, the first n pairs (0: all)")
+      ->capture_default_str();
+  shape_bench_cmd->add_option("--shadow-fraction", shape_bench.shadow_fraction,
+                              "Share of the points the camera shadow removes")
+      ->capture_default_str();
+  shape_bench_cmd->add_option("--seed", shape_bench.seed, "Seed of noise and placement")->capture_default_str();
+  shape_bench_cmd->add_option("--wrap-alpha", shape_bench.wrap_alpha,
+                              "Alpha wrap of the third-party models: alpha, of their diagonal")
+      ->capture_default_str();
+  shape_bench_cmd->add_option("--wrap-offset", shape_bench.wrap_offset,
+                              "Alpha wrap: offset, of their diagonal")
+      ->capture_default_str();
+  shape_bench_cmd->add_option("--export", shape_bench.export_dir,
+                              "Write templates and posed targets there as PLY");
+
   vb::tools::SawSimOptions saw_sim;
   CLI::App* saw_sim_cmd = app.add_subcommand(
       "saw-sim", "Reference band-saw controller on a CAN interface (checks, acks, safe stop)");
@@ -267,6 +303,7 @@ int main(int argc, char** argv) {
     if (compile_cmd->parsed()) return vb::tools::RunTemplateCompile(compile);
     if (info_cmd->parsed()) return vb::tools::RunTemplateInfo(info_path);
     if (capture_bench_cmd->parsed()) return vb::tools::RunCaptureBench(capture_bench);
+    if (shape_bench_cmd->parsed()) return vb::tools::RunShapeBench(shape_bench);
     if (bench_cmd->parsed()) return vb::tools::RunBenchCommand(bench);
     if (virtual_rig_cmd->parsed()) return vb::tools::RunVirtualRig(virtual_rig);
     if (virtual_line_cmd->parsed()) return vb::tools::RunVirtualLine(virtual_line);

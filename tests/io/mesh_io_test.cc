@@ -2,6 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <string>
+#include <vector>
+
 #include "io/error.h"
 #include "io/mesh_measures.h"
 #include "tests/support/temp_dir.h"
@@ -81,6 +85,56 @@ INSTANTIATE_TEST_SUITE_P(AllCloudFormats, CloudRoundTripTest,
                            return std::string(info.param[0] == 'C' ? "upper_" : "") +
                                   (info.param + 2);
                          });
+
+// A scanner's file may carry zero-length or NaN normals (a real lamb scan had only zeros):
+// they are never trusted. All of the file's normals are dropped, with a warning naming it.
+class InvalidNormalsTest : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(InvalidNormalsTest, AreDroppedWithAWarningNamingTheFile) {
+  test::TempDir dir;
+  const TriangleMesh mesh = TestMesh(true);
+  for (const double bad : {0.0, std::nan("")}) {
+    PointCloud cloud{mesh.V, mesh.N};
+    cloud.normals.col(3).setConstant(bad);
+    WriteCloud(dir / GetParam(), cloud);
+    std::vector<std::string> warnings;
+    const PointCloud back = ReadCloud(dir / GetParam(), {}, &warnings);
+    EXPECT_EQ(back.size(), cloud.size());
+    EXPECT_FALSE(back.has_normals());
+    ASSERT_EQ(warnings.size(), 1u);
+    EXPECT_NE(warnings[0].find((dir / GetParam()).string()), std::string::npos) << warnings[0];
+    EXPECT_NE(warnings[0].find("1 of " + std::to_string(cloud.size()) + " normals"), std::string::npos)
+        << warnings[0];
+  }
+}
+
+TEST_P(InvalidNormalsTest, OthersAreRescaledToUnitLength) {
+  test::TempDir dir;
+  const TriangleMesh mesh = TestMesh(true);
+  PointCloud cloud{mesh.V, 3.0 * mesh.N};
+  WriteCloud(dir / GetParam(), cloud);
+  std::vector<std::string> warnings;
+  const PointCloud back = ReadCloud(dir / GetParam(), {}, &warnings);
+  EXPECT_TRUE(warnings.empty());
+  ASSERT_TRUE(back.has_normals());
+  EXPECT_LT((back.normals - mesh.N).cwiseAbs().maxCoeff(), 1e-6);
+}
+
+INSTANTIATE_TEST_SUITE_P(AllCloudFormats, InvalidNormalsTest,
+                         ::testing::Values("c.ply", "c.off", "c.obj", "c.xyz", "c.pcd"),
+                         [](const ::testing::TestParamInfo<const char*>& info) {
+                           return std::string(info.param + 2);
+                         });
+
+TEST(MeshIoTest, ReadMeshDropsInvalidNormalsToo) {
+  test::TempDir dir;
+  TriangleMesh mesh = TestMesh(true);
+  mesh.N.setZero();
+  WriteMesh(dir / "m.ply", mesh);
+  std::vector<std::string> warnings;
+  EXPECT_FALSE(ReadMesh(dir / "m.ply", {}, &warnings).has_normals());
+  EXPECT_EQ(warnings.size(), 1u);
+}
 
 TEST(MeshIoTest, ReadCloudAcceptsMeshFiles) {
   test::TempDir dir;

@@ -12,7 +12,7 @@
 #include "perception/depth_renderer.h"
 #include "perception/virtual_rig.h"
 #include "tests/support/allocation_counter.h"
-#include "tests/support/surface_distance.h"
+#include "morph/surface_distance.h"
 
 namespace vb::perception {
 namespace {
@@ -90,7 +90,7 @@ TEST_F(FusionTest, FusedCloudLiesOnTheSurfaceAndCoversWhatTheCamerasSee) {
   EXPECT_EQ(stats.pixel_stride, 1);
 
   // Mean distance to the true surface: the target is 3 mm.
-  const test::SurfaceDistance distance(carcass_->mesh);
+  const morph::SurfaceDistance distance(carcass_->mesh);
   double sum = 0;
   int outward = 0;
   const Eigen::Matrix3Xd normals = io::VertexNormals(carcass_->mesh);
@@ -187,7 +187,7 @@ TEST_F(FusionTest, RemovesIsolatedSpecks) {
   FusedCloud cloud = dut.MakeOutput();
   const FusionStats stats = dut.Fuse(Views(), &cloud);
   EXPECT_GE(stats.outliers, planted * 9 / 10);
-  const test::SurfaceDistance distance(carcass_->mesh);
+  const morph::SurfaceDistance distance(carcass_->mesh);
   int far = 0;
   for (int i = 0; i < cloud.size; ++i) far += distance(cloud.points.col(i)) > 0.05;
   EXPECT_LT(far, planted / 20);

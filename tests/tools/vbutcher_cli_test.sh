@@ -63,6 +63,28 @@ for key in '"leg_loin"' '"loin_rack"' '"rack_shoulder"' '"confidence"' '"volume"
   grep -q -- "$key" "$work/c.json" 2>/dev/null || { echo "FAIL: cuts JSON lacks $key"; failures=$((failures + 1)); }
 done
 grep -q '"rounds"' "$work/fr.json" 2>/dev/null || { echo "FAIL: report lacks the dense rounds"; failures=$((failures + 1)); }
+# A scan whose normals are all zero length (as the real lamb scan's are): they are dropped with
+# a warning naming the file, estimated, and the full morph runs and reports its fit.
+/usr/bin/python3 - "$work/set/target_001_cloud.ply" "$work/zero_normals.ply" <<'PY'
+import sys
+data = open(sys.argv[1], "rb").read()
+head, body = data.split(b"end_header\n", 1)
+count = int([l for l in head.decode().splitlines() if l.startswith("element vertex")][0].split()[2])
+import struct
+xyz = struct.unpack("<%dd" % (3 * count), body[:24 * count])
+with open(sys.argv[2], "w") as out:
+    out.write("ply\nformat ascii 1.0\nelement vertex %d\n" % count)
+    out.write("".join("property float %s\n" % p for p in ("x", "y", "z", "nx", "ny", "nz")))
+    out.write("end_header\n")
+    for i in range(count):
+        out.write("%.6f %.6f %.6f 0 0 0\n" % xyz[3 * i:3 * i + 3])
+PY
+check "morph drops a scan's zero-length normals, naming the file" 0 "zero_normals.ply: 20000 of 20000 normals are zero-length" \
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/zero_normals.ply" --out "$work/z.ply" \
+  --stage full --annotations "$work/set/template_annotations.yaml"
+check "morph --stage full reports the fit to the scan" 0 "morph: fit: scan to morph distance mean" \
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/zero_normals.ply" --out "$work/z.ply" \
+  --stage full --annotations "$work/set/template_annotations.yaml"
 # A cloud much denser than its noise: the morph reads and uses it at every n-th point.
 check "synth writes a dense noisy cloud" 0 "template:" "$vbutcher" synth --out "$work/dense" --count 1 \
   --seed 5 --sigma-mm 16 --cloud --cloud-points 80000

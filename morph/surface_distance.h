@@ -7,10 +7,8 @@
 #include "io/triangle_mesh.h"
 
 namespace vb::morph {
-class PointIndex;
-}
 
-namespace vb::test {
+class PointIndex;
 
 /// Distance from points to a triangle mesh's surface: exact point-to-triangle distance over
 /// the faces around the mesh vertices nearest to the query (exact for meshes whose triangles
@@ -32,4 +30,4 @@ class SurfaceDistance {
 Eigen::Vector3d ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
                                        const Eigen::Vector3d& b, const Eigen::Vector3d& c);
 
-}  // namespace vb::test
+}  // namespace vb::morph

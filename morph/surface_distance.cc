@@ -1,10 +1,10 @@
-#include "tests/support/surface_distance.h"
+#include "morph/surface_distance.h"
 
 #include <limits>
 
 #include "morph/point_index.h"
 
-namespace vb::test {
+namespace vb::morph {
 
 // Region tests on the barycentric parameters (Ericson, Real-Time Collision Detection 5.1.5).
 Eigen::Vector3d ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
@@ -54,4 +54,4 @@ double SurfaceDistance::operator()(const Eigen::Vector3d& p) const {
   return best;
 }
 
-}  // namespace vb::test
+}  // namespace vb::morph

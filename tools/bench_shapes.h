@@ -1,0 +1,41 @@
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "tools/shape_set/surface_wrap.h"
+
+namespace vb::tools {
+
+struct ShapeBenchOptions {
+  std::vector<double> sigmas_mm = {0, 4, 16};  ///< noise along normals, at a 1.7 m body
+  std::vector<std::string> variants = {"clean", "shadow"};
+  /// Shapes to run by name (DefaultShapeSpecs, plus "lamb"); empty runs all of them.
+  std::vector<std::string> shapes;
+  int lamb_pairs = 2;            ///< synthetic lamb targets (generator poses)
+  int max_pairs = 0;             ///< per shape, the first n pairs only (0: all)
+  double shadow_fraction = 0.2;  ///< points removed in the camera-shadow band
+  std::uint64_t seed = 1;
+  std::filesystem::path csv = "bench_shapes.csv";
+  /// The picture (error per shape and stage, one example morph per shape); default the CSV's
+  /// path with .png. Made by scripts/plot-shapes (python3-matplotlib).
+  std::filesystem::path png;
+  bool no_png = false;
+  /// When set, the templates and posed targets are written there as PLY (vertex i of every
+  /// target is vertex i of its template).
+  std::filesystem::path export_dir;
+  /// CGAL alpha wrap of the third-party models, fractions of their bounding-box diagonal.
+  double wrap_alpha = WrapOptions{}.alpha;
+  double wrap_offset = WrapOptions{}.offset;
+};
+
+/// `vbutcher bench shapes`: the morph on third-party rigged and animated bodies posed by their
+/// own rigs (tools/shape_set) and on synthetic lambs, at each noise level, clean and with a
+/// camera shadow; methods identity, rigid_bound, coarse and full. Prints a table, writes one
+/// CSV row per (shape, pair, sigma, variant, method), example morphs and a PNG.
+/// @return 0, or 1 when a shape could not be built or run at all.
+int RunShapeBench(const ShapeBenchOptions& options);
+
+}  // namespace vb::tools
