@@ -10,7 +10,7 @@ trap 'rm -rf "$work"' EXIT
 cmake --install "$build" --prefix "$work/usr" >/dev/null
 for f in bin/virtualbutcherd bin/vbutcher lib/systemd/system/virtualbutcherd.service \
          etc/virtualbutcher/virtualbutcherd.yaml etc/virtualbutcher/rig.yaml \
-         share/virtualbutcher/lamb.vbt lib/virtualbutcher/openni2/libOpenNI2.so.0 \
+         share/virtualbutcher/lamb.vbt share/virtualbutcher/plot-shapes lib/virtualbutcher/openni2/libOpenNI2.so.0 \
          lib/virtualbutcher/openni2/OpenNI2/Drivers/libVirtualButcherRig.so.0 \
          lib/virtualbutcher/openni2/OpenNI2/Drivers/libOniFile.so.0; do
   [ -e "$work/usr/$f" ] || { echo "FAIL: $f not installed"; exit 1; }
