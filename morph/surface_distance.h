@@ -10,12 +10,14 @@ namespace vb::morph {
 
 class PointIndex;
 
-/// Distance from points to a triangle mesh's surface: exact point-to-triangle distance over
-/// the faces around the mesh vertices nearest to the query (exact for meshes whose triangles
-/// are small against the query's distance, as ours are).
+/// Distance from points to a triangle mesh's surface: the least exact point-to-triangle
+/// distance over the faces around the 8 mesh vertices nearest to the query. Approximate: it
+/// can miss the closest face when triangles are large against the query's distance.
+/// Holds a reference to the mesh, which must outlive it and not change.
 class SurfaceDistance {
  public:
   explicit SurfaceDistance(const io::TriangleMesh& mesh);
+  explicit SurfaceDistance(io::TriangleMesh&&) = delete;
   ~SurfaceDistance();
 
   double operator()(const Eigen::Vector3d& p) const;

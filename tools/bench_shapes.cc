@@ -15,6 +15,10 @@
 #include <random>
 #include <sstream>
 
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include "io/error.h"
 #include "io/mesh_io.h"
 #include "io/mesh_measures.h"
@@ -36,14 +40,17 @@ struct BenchCase {
   std::string name, family, source;
   io::TriangleMesh template_mesh;
   std::vector<ShapeTarget> targets;
-  std::vector<io::TriangleMesh> sources;  ///< ShapeCase::sources (none for the lamb)
+  /// Per target, the surface the camera samples: the model itself as its rig poses it (not
+  /// the wrap), or the posed lamb.
+  std::vector<io::TriangleMesh> scanned;
+  io::TriangleMesh rest_source;  ///< the model in the rest pose (none for the lamb)
   std::vector<std::string> source_labels;
 };
 
 struct Row {
   std::string shape, family, source, pair, variant, method;
   double pose_change_deg = 0, sigma_mm = 0;
-  int points = 0;
+  int points = 0, template_vertices = 0;
   bool ok = false;
   double mean_err_rel = std::nan(""), max_err_rel = std::nan(""), placement_err_deg = std::nan("");
   double seconds = 0;
@@ -53,27 +60,88 @@ double Since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-// A uniformly random rotation and a translation up to 0.5 m per axis, as the lamb generator
-// places its carcasses.
-Eigen::Isometry3d RandomPlacement(std::mt19937_64* rng) {
-  std::normal_distribution<double> normal;
-  Eigen::Quaterniond q(normal(*rng), normal(*rng), normal(*rng), normal(*rng));
-  q.normalize();
-  std::uniform_real_distribution<double> shift(-0.5, 0.5);
+// Random numbers the same on every platform: mt19937_64 is fully specified, the standard
+// distributions are not, so uniform and normal variates are made here.
+class Random {
+ public:
+  explicit Random(std::uint64_t seed) : engine_(seed) {}
+  double Uniform() { return static_cast<double>(engine_() >> 11) * 0x1.0p-53; }  // [0, 1)
+  double Normal() {  // Box-Muller, one of the pair
+    const double u = 1.0 - Uniform();
+    const double v = Uniform();
+    return std::sqrt(-2.0 * std::log(u)) * std::cos(2.0 * std::numbers::pi * v);
+  }
+  Eigen::Vector3d NormalVector() {
+    const double x = Normal();
+    const double y = Normal();
+    const double z = Normal();
+    return {x, y, z};
+  }
+
+ private:
+  std::mt19937_64 engine_;
+};
+
+// FNV-1a, so that a target's seed does not depend on the standard library's std::hash.
+std::uint64_t Fnv1a(const std::string& text) {
+  std::uint64_t h = 0xcbf29ce484222325ull;
+  for (unsigned char c : text) h = (h ^ c) * 0x100000001b3ull;
+  return h;
+}
+
+// A uniformly random rotation (a normalised Gaussian quaternion) and a translation up to
+// 0.5 m per axis, as the lamb generator places its carcasses.
+Eigen::Isometry3d RandomPlacement(Random* random) {
+  const double w = random->Normal();
+  const Eigen::Vector3d xyz = random->NormalVector();
   Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
-  X.linear() = q.toRotationMatrix();
-  X.translation() = Eigen::Vector3d(shift(*rng), shift(*rng), shift(*rng));
+  X.linear() = Eigen::Quaterniond(w, xyz.x(), xyz.y(), xyz.z()).normalized().toRotationMatrix();
+  const double x = random->Uniform() - 0.5;
+  const double y = random->Uniform() - 0.5;
+  const double z = random->Uniform() - 0.5;
+  X.translation() = Eigen::Vector3d(x, y, z);
   return X;
 }
 
-// The camera-shadow variant: of the points whose true normal faces away from a view direction
-// (drawn at random, horizontal in the shape's frame is not assumed), the @p fraction of all
-// points nearest to a random position along the body's longest principal axis: one band, on
-// the far side, gone.
+// @p count points drawn uniformly over the area of @p surface (degenerate faces have none),
+// each with its face's unit normal.
+void SampleSurface(const io::TriangleMesh& surface, int count, Random* random,
+                   Eigen::Matrix3Xd* points, Eigen::Matrix3Xd* normals) {
+  std::vector<double> cumulative(static_cast<std::size_t>(surface.num_faces()));
+  double total = 0;
+  for (int f = 0; f < surface.num_faces(); ++f) {
+    const Eigen::Vector3d a = surface.V.col(surface.F(0, f));
+    total += 0.5 * (surface.V.col(surface.F(1, f)) - a).cross(surface.V.col(surface.F(2, f)) - a).norm();
+    cumulative[static_cast<std::size_t>(f)] = total;
+  }
+  if (!(total > 0)) throw InputError("bench shapes: a target surface has no area");
+  points->resize(3, count);
+  normals->resize(3, count);
+  for (int i = 0; i < count; ++i) {
+    const double at = random->Uniform() * total;
+    const auto f = static_cast<int>(std::min<std::ptrdiff_t>(
+        std::upper_bound(cumulative.begin(), cumulative.end(), at) - cumulative.begin(),
+        surface.num_faces() - 1));
+    double u = random->Uniform();
+    double v = random->Uniform();
+    if (u + v > 1) {
+      u = 1 - u;
+      v = 1 - v;
+    }
+    const Eigen::Vector3d a = surface.V.col(surface.F(0, f));
+    const Eigen::Vector3d b = surface.V.col(surface.F(1, f));
+    const Eigen::Vector3d c = surface.V.col(surface.F(2, f));
+    points->col(i) = a + u * (b - a) + v * (c - a);
+    normals->col(i) = (b - a).cross(c - a).normalized();
+  }
+}
+
+// The camera-shadow variant: of the points whose normal faces away from a random view
+// direction, the @p fraction of all points nearest (along the body's longest principal axis)
+// to a random one of them: one band on the far side, gone. Returns the points kept.
 std::vector<int> ShadowBand(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
-                            double fraction, std::mt19937_64* rng) {
-  std::normal_distribution<double> normal;
-  const Eigen::Vector3d view = Eigen::Vector3d(normal(*rng), normal(*rng), normal(*rng)).normalized();
+                            double fraction, Random* random) {
+  const Eigen::Vector3d view = random->NormalVector().normalized();
   const Eigen::Vector3d mean = points.rowwise().mean();
   const Eigen::Matrix3Xd centred = points.colwise() - mean;
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> pca(centred * centred.transpose());
@@ -82,32 +150,23 @@ std::vector<int> ShadowBand(const Eigen::Matrix3Xd& points, const Eigen::Matrix3
   for (Eigen::Index i = 0; i < points.cols(); ++i) {
     if (normals.col(i).dot(view) < 0) far_side.push_back(static_cast<int>(i));
   }
-  std::vector<int> kept(static_cast<std::size_t>(points.cols()));
-  for (std::size_t i = 0; i < kept.size(); ++i) kept[i] = static_cast<int>(i);
-  if (far_side.empty()) return kept;
-  const int centre = far_side[std::uniform_int_distribution<std::size_t>(0, far_side.size() - 1)(*rng)];
-  const double at = axis.dot(centred.col(centre));
-  std::sort(far_side.begin(), far_side.end(), [&](int a, int b) {
-    return std::abs(axis.dot(centred.col(a)) - at) < std::abs(axis.dot(centred.col(b)) - at);
-  });
-  const auto remove = std::min(far_side.size(),
-                               static_cast<std::size_t>(std::lround(fraction * static_cast<double>(points.cols()))));
+  std::vector<int> kept;
+  if (far_side.empty()) {
+    for (Eigen::Index i = 0; i < points.cols(); ++i) kept.push_back(static_cast<int>(i));
+    return kept;
+  }
+  const auto pick = static_cast<std::size_t>(random->Uniform() * static_cast<double>(far_side.size()));
+  const double at = axis.dot(centred.col(far_side[std::min(pick, far_side.size() - 1)]));
+  auto key = [&](int i) { return std::pair(std::abs(axis.dot(centred.col(i)) - at), i); };
+  std::sort(far_side.begin(), far_side.end(), [&](int a, int b) { return key(a) < key(b); });
+  const auto remove = std::min(far_side.size(), static_cast<std::size_t>(std::lround(
+                                                    fraction * static_cast<double>(points.cols()))));
   std::vector<char> gone(static_cast<std::size_t>(points.cols()), 0);
   for (std::size_t k = 0; k < remove; ++k) gone[static_cast<std::size_t>(far_side[k])] = 1;
-  kept.clear();
   for (Eigen::Index i = 0; i < points.cols(); ++i) {
     if (!gone[static_cast<std::size_t>(i)]) kept.push_back(static_cast<int>(i));
   }
   return kept;
-}
-
-Eigen::Matrix3d BestRotation(const Eigen::Matrix3Xd& from, const Eigen::Matrix3Xd& to) {
-  return Eigen::umeyama(from, to, true).topLeftCorner<3, 3>() /
-         morph::Similarity::FromUmeyama(Eigen::umeyama(from, to, true)).scale;
-}
-
-double AngleDeg(const Eigen::Matrix3d& R) {
-  return Eigen::AngleAxisd(R).angle() * 180.0 / std::numbers::pi;
 }
 
 Eigen::Matrix3Xd Select(const Eigen::Matrix3Xd& M, const std::vector<int>& columns) {
@@ -116,7 +175,16 @@ Eigen::Matrix3Xd Select(const Eigen::Matrix3Xd& M, const std::vector<int>& colum
   return out;
 }
 
-// Errors of @p result (template vertices) against @p truth, relative to the target's size.
+Eigen::Matrix3d BestRotation(const Eigen::Matrix3Xd& from, const Eigen::Matrix3Xd& to) {
+  return morph::Similarity::FromUmeyama(Eigen::umeyama(from, to, true)).R;
+}
+
+double AngleDeg(const Eigen::Matrix3d& R) {
+  return Eigen::AngleAxisd(R).angle() * 180.0 / std::numbers::pi;
+}
+
+// Errors of @p result (template vertices) against @p truth, relative to the target's size
+// (TrueSize: the template's diagonal times the scale of the best similarity onto the truth).
 void Score(const Eigen::Matrix3Xd& result, const Eigen::Matrix3Xd& truth,
            const Eigen::Matrix3Xd& rest, Row* row) {
   const double size = TrueSize(rest, truth);
@@ -155,13 +223,14 @@ std::vector<BenchCase> BuildCases(const ShapeBenchOptions& options, bool* any_fa
       BenchCase c{.name = spec.name, .family = spec.family,
                   .source = spec.package + ":" + spec.file.filename().string(),
                   .template_mesh = shape.template_mesh, .targets = shape.targets,
-                  .sources = shape.sources, .source_labels = {spec.rest.label}};
+                  .scanned = {shape.sources.begin() + 1, shape.sources.end()},
+                  .rest_source = shape.sources.front(), .source_labels = {spec.rest.label}};
       for (const ShapePose& pose : spec.targets) c.source_labels.push_back(pose.label);
-      std::fprintf(stderr, "shape %s: %d source vertices -> closed template of %d vertices %zu pairs (%.1f s)\n",
+      std::fprintf(stderr, "shape %s: %d source vertices -> closed template of %d vertices, %zu pairs (%.1f s)\n",
                    spec.name.c_str(), shape.sources.front().num_vertices(), shape.template_mesh.num_vertices(),
                    shape.targets.size(), Since(start));
       cases.push_back(std::move(c));
-    } catch (const InputError& e) {
+    } catch (const std::exception& e) {  // InputError, or CGAL's own
       std::fprintf(stderr, "shape %s: cannot build: %s\n", spec.name.c_str(), e.what());
       *any_failed = true;
     }
@@ -169,7 +238,8 @@ std::vector<BenchCase> BuildCases(const ShapeBenchOptions& options, bool* any_fa
   if (wanted("lamb") && options.lamb_pairs > 0) {
     const perception::CarcassTemplate carcass = perception::BuildCarcassTemplate();
     BenchCase c{.name = "lamb", .family = "lamb", .source = "virtualbutcher:carcass_generator",
-                .template_mesh = carcass.mesh, .targets = {}, .sources = {}, .source_labels = {}};
+                .template_mesh = carcass.mesh, .targets = {}, .scanned = {}, .rest_source = {},
+                .source_labels = {}};
     for (int i = 0; i < options.lamb_pairs; ++i) {
       const std::uint64_t seed = options.seed * 1000003 + static_cast<std::uint64_t>(i);
       perception::PoseOptions pose_options;
@@ -179,15 +249,29 @@ std::vector<BenchCase> BuildCases(const ShapeBenchOptions& options, bool* any_fa
       ShapeTarget target{.pair = "rest-s" + std::to_string(seed), .V = posed.mesh.V};
       target.pose_change_deg = PoseChangeDeg(carcass.mesh.V, target.V);
       c.targets.push_back(std::move(target));
+      c.scanned.push_back(posed.mesh);
     }
     cases.push_back(std::move(c));
   }
   for (BenchCase& c : cases) {
     if (options.max_pairs > 0 && static_cast<int>(c.targets.size()) > options.max_pairs) {
       c.targets.resize(static_cast<std::size_t>(options.max_pairs));
+      c.scanned.resize(static_cast<std::size_t>(options.max_pairs));
     }
   }
   return cases;
+}
+
+// Runs @p argv (no shell) and returns its exit status, or -1 when it could not run.
+int RunProgram(const std::vector<std::string>& argv) {
+  std::vector<char*> args;
+  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  pid_t pid = 0;
+  if (posix_spawn(&pid, args[0], nullptr, nullptr, args.data(), environ) != 0) return -1;
+  int status = 0;
+  if (waitpid(pid, &status, 0) != pid) return -1;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
 std::filesystem::path PlotScript() {
@@ -208,6 +292,20 @@ int RunShapeBench(const ShapeBenchOptions& options) {
   if (!(options.shadow_fraction > 0 && options.shadow_fraction < 1)) {
     throw InputError("bench shapes: --shadow-fraction must lie in (0, 1)");
   }
+  if (options.variants.empty()) throw InputError("bench shapes: --variants: none given");
+  if (options.sigmas_mm.empty()) throw InputError("bench shapes: --sigmas-mm: none given");
+  for (double sigma : options.sigmas_mm) {
+    if (!(sigma >= 0 && sigma <= 100)) {
+      throw InputError("bench shapes: --sigmas-mm: " + std::to_string(sigma) + " is outside 0 to 100 mm");
+    }
+  }
+  if (!(options.wrap_alpha > 0 && options.wrap_alpha < 0.5) ||
+      !(options.wrap_offset > 0 && options.wrap_offset < 0.5)) {
+    throw InputError("bench shapes: --wrap-alpha and --wrap-offset must lie in (0, 0.5)");
+  }
+  if (!(options.points >= 100 && options.points <= 2000000)) {
+    throw InputError("bench shapes: --points must lie in 100 to 2000000");
+  }
   bool any_failed = false;
   const std::vector<BenchCase> cases = BuildCases(options, &any_failed);
   if (cases.empty()) throw InputError("bench shapes: no shape to run (names: bcn sydney faerie wuson spiderblob lamb)");
@@ -216,6 +314,11 @@ int RunShapeBench(const ShapeBenchOptions& options) {
   examples.replace_extension();
   examples += "_examples";
   std::filesystem::create_directories(examples);
+  for (const BenchCase& c : cases) {  // no stale example from an earlier run
+    for (const char* part : {"target", "truth", "coarse", "full"}) {
+      std::filesystem::remove(examples / (c.name + "_" + part + ".xyz"));
+    }
+  }
   if (!options.export_dir.empty()) std::filesystem::create_directories(options.export_dir);
 
   int total = 0;
@@ -229,7 +332,7 @@ int RunShapeBench(const ShapeBenchOptions& options) {
     morph::TemplateModel model;
     try {
       model = morph::BuildTemplateModel(c.template_mesh);
-    } catch (const InputError& e) {
+    } catch (const std::exception& e) {  // InputError, or CGAL's own
       std::fprintf(stderr, "shape %s: no template model: %s\n", c.name.c_str(), e.what());
       any_failed = true;
       done += static_cast<int>(c.targets.size() * options.sigmas_mm.size() * options.variants.size());
@@ -237,8 +340,8 @@ int RunShapeBench(const ShapeBenchOptions& options) {
     }
     if (!options.export_dir.empty()) {
       io::WriteMesh(options.export_dir / (c.name + "_template.ply"), c.template_mesh);
-      for (std::size_t k = 0; k < c.sources.size(); ++k) {
-        io::TriangleMesh source = c.sources[k];
+      for (std::size_t k = 0; k < c.source_labels.size(); ++k) {
+        io::TriangleMesh source = k == 0 ? c.rest_source : c.scanned[k - 1];
         source.N = io::VertexNormals(source);
         io::WriteMesh(options.export_dir / (c.name + "_source_" + c.source_labels[k] + ".ply"), source);
       }
@@ -251,19 +354,26 @@ int RunShapeBench(const ShapeBenchOptions& options) {
       if (!options.export_dir.empty()) {
         io::WriteMesh(options.export_dir / (c.name + "_" + target.pair + ".ply"), truth_mesh);
       }
+      // One placement, one sample of the scanned surface and one shadow per pair, the same at
+      // every noise level and in both variants, so that rows differ only in what they name.
+      const std::uint64_t seed = Fnv1a(c.name + "/" + target.pair) ^ (options.seed * 0x9e3779b97f4a7c15ull);
+      Random placement_random(seed), sample_random(seed + 1), shadow_random(seed + 2);
+      const Eigen::Isometry3d X = RandomPlacement(&placement_random);
+      io::TriangleMesh placed = truth_mesh;
+      placed.V = X * truth_mesh.V;
+      Eigen::Matrix3Xd clean_points, normals;
+      SampleSurface(c.scanned[t], options.points, &sample_random, &clean_points, &normals);
+      clean_points = (X * clean_points).eval();
+      normals = (X.linear() * normals).eval();
+      const std::vector<int> unshadowed = ShadowBand(clean_points, normals, options.shadow_fraction, &shadow_random);
       for (double sigma_mm : options.sigmas_mm) {
+        Random noise_random(seed + 3 + static_cast<std::uint64_t>(std::lround(sigma_mm * 1000)));
+        Eigen::Matrix3Xd noisy = clean_points;
+        for (Eigen::Index i = 0; i < noisy.cols(); ++i) {
+          noisy.col(i) += (sigma_mm / 1000.0 * noise_random.Normal()) * normals.col(i);
+        }
         for (const std::string& variant : options.variants) {
-          std::mt19937_64 rng(options.seed * 7919 + std::hash<std::string>{}(c.name + target.pair) +
-                              static_cast<std::uint64_t>(sigma_mm * 1000) + (variant == "shadow"));
-          const Eigen::Isometry3d X = RandomPlacement(&rng);
-          io::TriangleMesh placed = truth_mesh;
-          placed.V = (X.linear() * truth_mesh.V).colwise() + X.translation();
-          placed.N = X.linear() * truth_mesh.N;
-          const io::TriangleMesh noisy = perception::AddNormalNoise(placed, sigma_mm / 1000.0, rng());
-          Eigen::Matrix3Xd points = noisy.V;
-          if (variant == "shadow") {
-            points = Select(noisy.V, ShadowBand(noisy.V, placed.N, options.shadow_fraction, &rng));
-          }
+          const Eigen::Matrix3Xd points = variant == "shadow" ? Select(noisy, unshadowed) : noisy;
           Row base;
           base.shape = c.name;
           base.family = c.family;
@@ -273,13 +383,17 @@ int RunShapeBench(const ShapeBenchOptions& options) {
           base.sigma_mm = sigma_mm;
           base.variant = variant;
           base.points = static_cast<int>(points.cols());
+          base.template_vertices = c.template_mesh.num_vertices();
           const Eigen::Matrix3Xd& rest = c.template_mesh.V;
 
           Row identity = base;
           identity.method = "identity";
           auto start = std::chrono::steady_clock::now();
-          const Eigen::Vector3d shift = points.rowwise().mean() - rest.rowwise().mean();
-          Score(rest.colwise() + shift, placed.V, rest, &identity);
+          // The template undeformed, in the target's true orientation (the rig frame), centred
+          // on the cloud: what no morph at all gives.
+          const Eigen::Matrix3Xd turned = X.linear() * rest;
+          const Eigen::Vector3d shift = points.rowwise().mean() - turned.rowwise().mean();
+          Score(turned.colwise() + shift, placed.V, rest, &identity);
           identity.seconds = Since(start);
 
           Row bound = base;
@@ -334,12 +448,14 @@ int RunShapeBench(const ShapeBenchOptions& options) {
   // The CSV: one row per (shape, pair, sigma, variant, method).
   {
     std::ofstream csv(options.csv);
-    csv << "shape,family,source,pair,pose_change_deg,sigma_mm,variant,method,points,ok,mean_err_rel,"
-           "max_err_rel,placement_err_deg,seconds\n";
+    csv << "shape,family,source,pair,pose_change_deg,sigma_mm,variant,method,points,"
+           "template_vertices,wrap_alpha,wrap_offset,ok,mean_err_rel,max_err_rel,placement_err_deg,"
+           "seconds\n";
     for (const Row& r : rows) {
       csv << r.shape << ',' << r.family << ',' << r.source << ',' << r.pair << ','
           << r.pose_change_deg << ',' << r.sigma_mm << ',' << r.variant << ',' << r.method << ','
-          << r.points << ',' << r.ok << ',' << r.mean_err_rel << ',' << r.max_err_rel << ','
+          << r.points << ',' << r.template_vertices << ',' << (r.shape == "lamb" ? 0.0 : options.wrap_alpha)
+          << ',' << (r.shape == "lamb" ? 0.0 : options.wrap_offset) << ',' << r.ok << ',' << r.mean_err_rel << ',' << r.max_err_rel << ','
           << r.placement_err_deg << ',' << r.seconds << '\n';
     }
     if (!csv) throw std::runtime_error("cannot write " + options.csv.string());
@@ -374,7 +490,7 @@ int RunShapeBench(const ShapeBenchOptions& options) {
           max[r.method].push_back(r.max_err_rel);
           seconds[r.method].push_back(r.seconds);
           if (r.method == "coarse") {
-            ratio.push_back(r.mean_err_rel / bound_by_pair[r.pair]);
+            if (bound_by_pair[r.pair] > 0) ratio.push_back(r.mean_err_rel / bound_by_pair[r.pair]);
             flips += r.placement_err_deg > 90;
           }
         }
@@ -397,11 +513,12 @@ int RunShapeBench(const ShapeBenchOptions& options) {
       png.replace_extension(".png");
     }
     std::fflush(stdout);
-    const std::string command = "/usr/bin/python3 '" + PlotScript().string() + "' '" +
-                                options.csv.string() + "' '" + png.string() + "'";
-    if (std::system(command.c_str()) != 0) {
-      std::fprintf(stderr, "bench shapes: no picture: '%s' failed (python3-matplotlib installed?)\n",
-                   command.c_str());
+    const std::string script = PlotScript().string();
+    if (RunProgram({"/usr/bin/python3", script, options.csv.string(), png.string()}) != 0) {
+      std::fprintf(stderr,
+                   "bench shapes: no picture: /usr/bin/python3 %s failed (python3-matplotlib "
+                   "installed?)\n",
+                   script.c_str());
     } else {
       std::printf("picture: %s\n", png.string().c_str());
     }

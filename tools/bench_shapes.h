@@ -17,6 +17,9 @@ struct ShapeBenchOptions {
   int lamb_pairs = 2;            ///< synthetic lamb targets (generator poses)
   int max_pairs = 0;             ///< per shape, the first n pairs only (0: all)
   double shadow_fraction = 0.2;  ///< points removed in the camera-shadow band
+  /// Points sampled over each target's surface: the model as its rig poses it (not the
+  /// closed wrap), or the posed lamb.
+  int points = 20000;
   std::uint64_t seed = 1;
   std::filesystem::path csv = "bench_shapes.csv";
   /// The picture (error per shape and stage, one example morph per shape); default the CSV's

@@ -231,6 +231,8 @@ int main(int argc, char** argv) {
   shape_bench_cmd->add_option("--shadow-fraction", shape_bench.shadow_fraction,
                               "Share of the points the camera shadow removes")
       ->capture_default_str();
+  shape_bench_cmd->add_option("--points", shape_bench.points, "Points sampled over each target's surface")
+      ->capture_default_str();
   shape_bench_cmd->add_option("--seed", shape_bench.seed, "Seed of noise and placement")->capture_default_str();
   shape_bench_cmd->add_option("--wrap-alpha", shape_bench.wrap_alpha,
                               "Alpha wrap of the third-party models: alpha, of their diagonal")

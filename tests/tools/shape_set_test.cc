@@ -12,51 +12,11 @@
 #include "io/mesh_measures.h"
 #include "io/mesh_topology.h"
 #include "morph/template_model.h"
-#include "tests/support/test_meshes.h"
 
 namespace vb::tools {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-
-TEST(SurfaceAnchorTest, PointsNearASurfaceComeBackWhereTheyWere) {
-  const io::TriangleMesh sphere = test::Sphere(1.0, 3);
-  // Points off the surface, inside and outside.
-  Eigen::Matrix3Xd points = 1.03 * sphere.V.leftCols(40);
-  points.rightCols(20) *= 0.95;
-  const Eigen::Matrix3Xd placed = PlaceAnchors(AnchorOnSurface(points, sphere), sphere);
-  EXPECT_LT((placed - points).cwiseAbs().maxCoeff(), 1e-9);
-}
-
-TEST(SurfaceAnchorTest, ARigidMotionOfTheSurfaceMovesTheAnchoredPointsWithIt) {
-  const io::TriangleMesh box = test::Box(2.0, 1.0, 0.5);
-  const Eigen::Matrix3Xd points = 1.1 * box.V;
-  const std::vector<SurfaceAnchor> anchors = AnchorOnSurface(points, box);
-  const Eigen::Isometry3d X = Eigen::Translation3d(0.3, -1.0, 2.0) *
-                              Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized());
-  io::TriangleMesh moved = box;
-  moved.V = X * box.V;  // Eigen applies the isometry to every column
-  const Eigen::Matrix3Xd placed = PlaceAnchors(anchors, moved);
-  EXPECT_LT((placed - X * points).cwiseAbs().maxCoeff(), 1e-9);
-}
-
-TEST(SurfaceWrapTest, AnOpenSoupOfTwoPiecesBecomesOneClosedManifold) {
-  // Two boxes, each with two faces missing, apart by less than the wrap's alpha.
-  io::TriangleMesh soup = test::Box(1.0, 1.0, 1.0);
-  const int faces = soup.num_faces();
-  io::TriangleMesh other = soup;
-  other.V.row(0).array() += 1.005;
-  soup.V.conservativeResize(3, soup.V.cols() + other.V.cols());
-  soup.V.rightCols(other.V.cols()) = other.V;
-  soup.F.conservativeResize(3, 2 * faces - 4);
-  soup.F.rightCols(faces - 2) = (other.F.leftCols(faces - 2).array() + other.num_vertices()).matrix();
-  const io::TriangleMesh wrap = WrapSurface(soup, {.alpha = 0.02, .offset = 0.002});
-  const io::TopologyReport topology = io::AnalyzeTopology(wrap);
-  EXPECT_TRUE(topology.is_closed_manifold()) << topology.Describe();
-  EXPECT_TRUE(topology.is_consistently_oriented()) << topology.Describe();
-  EXPECT_EQ(topology.components, 1);
-  EXPECT_GT(io::SignedVolume(wrap), 0.0);  // outward
-}
 
 // A straight bar of points; the last @p share of it turned by @p degrees about the joint.
 Eigen::Matrix3Xd Bar(double share, double degrees) {
@@ -80,8 +40,8 @@ TEST(PoseChangeTest, ReadsTheTurnOfALimbAndNothingForARigidMotion) {
   const Eigen::Isometry3d X = Eigen::Translation3d(1, 2, 3) * Eigen::AngleAxisd(1.0, Eigen::Vector3d::UnitY());
   EXPECT_LT(PoseChangeDeg(rest, X * rest), 1e-6);
   // A limb of 15 % turned by 60 degrees: the body is the rigid fit, the limb reads 60 less
-  // the little the whole's fit leans towards it (57).
-  EXPECT_NEAR(PoseChangeDeg(rest, Bar(0.15, 60.0)), 60.0, 4.0);
+  // the little the whole's fit leans towards it.
+  EXPECT_NEAR(PoseChangeDeg(rest, Bar(0.15, 60.0)), 57.0, 1.5);
 }
 
 // Every shape of the benchmark: its package is installed (scripts/install-deps), its template
@@ -102,7 +62,8 @@ TEST_P(ShapeSetTest, TemplateIsClosedAndTargetsArePosedFarEnough) {
   EXPECT_TRUE(topology.is_closed_manifold()) << topology.Describe();
   const Eigen::Vector3d extent =
       shape.template_mesh.V.rowwise().maxCoeff() - shape.template_mesh.V.rowwise().minCoeff();
-  EXPECT_NEAR(extent.maxCoeff(), 1.7, 0.05);  // the wrap's offset adds a little
+  // The wrap lies 0.14 % of the diagonal (about 3 mm) outside the model on every side.
+  EXPECT_NEAR(extent.maxCoeff(), 1.7 + 2 * 0.0014 * io::BoundingBoxDiagonal(shape.sources.front().V), 0.002);
   EXPECT_NO_THROW(morph::BuildTemplateModel(shape.template_mesh));
   ASSERT_EQ(shape.targets.size(), GetParam().targets.size());
   for (const ShapeTarget& target : shape.targets) {
@@ -110,6 +71,13 @@ TEST_P(ShapeSetTest, TemplateIsClosedAndTargetsArePosedFarEnough) {
     EXPECT_TRUE(target.V.allFinite()) << target.pair;
     EXPECT_GE(target.pose_change_deg, 30.0) << target.pair;
   }
+  ASSERT_EQ(shape.sources.size(), shape.targets.size() + 1);
+}
+
+TEST(LoadPosedModelTest, AKeyframeOfASkeletalFileOrATimePastItsAnimationIsRefused) {
+  const ShapeSpec bcn = DefaultShapeSpecs().front();
+  EXPECT_THROW(LoadPosedModel(bcn.file, {.label = "f3", .keyframe = 3}), InputError);
+  EXPECT_THROW(LoadPosedModel(bcn.file, {.label = "late", .animation = 0, .time = 1e9}), InputError);
 }
 
 INSTANTIATE_TEST_SUITE_P(Default, ShapeSetTest, testing::ValuesIn(DefaultShapeSpecs()),

@@ -14,6 +14,7 @@
 
 #include "io/error.h"
 #include "io/mesh_measures.h"
+#include "morph/feature_association.h"
 #include "morph/point_index.h"
 
 namespace vb::tools {
@@ -116,14 +117,29 @@ io::TriangleMesh LoadPosedModel(const std::filesystem::path& file, const ShapePo
   }
   Assimp::Importer importer;
   if (pose.keyframe >= 0) importer.SetPropertyInteger(AI_CONFIG_IMPORT_GLOBAL_KEYFRAME, pose.keyframe);
-  // Triangulate only: joining identical vertices would make the vertex order depend on the pose.
-  const aiScene* scene = importer.ReadFile(where, aiProcess_Triangulate);
+  // Triangulate only: joining identical vertices would make the vertex order depend on the
+  // pose. libassimp's validation checks every index against its array.
+  const aiScene* scene =
+      importer.ReadFile(where, aiProcess_Triangulate | aiProcess_ValidateDataStructure);
   if (scene == nullptr || scene->mRootNode == nullptr) {
     throw InputError(where + ": libassimp: " + importer.GetErrorString());
   }
   if (pose.animation >= 0 && pose.animation >= static_cast<int>(scene->mNumAnimations)) {
     throw InputError(where + ": no animation " + std::to_string(pose.animation) + " (it has " +
                      std::to_string(scene->mNumAnimations) + ")");
+  }
+  if (pose.animation >= 0) {
+    const aiAnimation& animation = *scene->mAnimations[pose.animation];
+    if (!(pose.time >= 0 && pose.time <= animation.mDuration)) {
+      throw InputError(where + ": pose " + pose.label + ": time " + std::to_string(pose.time) +
+                       " is outside animation " + std::to_string(pose.animation) + " (0 to " +
+                       std::to_string(animation.mDuration) + " ticks)");
+    }
+  }
+  if (pose.keyframe >= 0 && scene->mNumAnimations > 0) {
+    throw InputError(where + ": pose " + pose.label +
+                     ": a keyframe was given, but the file is animated by its skeleton (give an "
+                     "animation and a time)");
   }
   std::map<std::string, const aiNodeAnim*> channels;
   if (pose.animation >= 0) {
@@ -179,6 +195,13 @@ io::TriangleMesh LoadPosedModel(const std::filesystem::path& file, const ShapePo
     for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
       const aiFace& face = mesh.mFaces[f];
       if (face.mNumIndices != 3) continue;  // points and lines
+      for (unsigned k = 0; k < 3; ++k) {
+        if (face.mIndices[k] >= mesh.mNumVertices) {
+          throw InputError(where + ": mesh " + std::to_string(mi) + " face " + std::to_string(f) +
+                           " names vertex " + std::to_string(face.mIndices[k]) + " of " +
+                           std::to_string(mesh.mNumVertices));
+        }
+      }
       faces.emplace_back(base + static_cast<int>(face.mIndices[0]),
                          base + static_cast<int>(face.mIndices[1]),
                          base + static_cast<int>(face.mIndices[2]));
@@ -212,7 +235,7 @@ ShapeCase BuildShapeCase(const ShapeSpec& spec, const ShapeCaseOptions& options)
   const std::vector<SurfaceAnchor> anchors = AnchorOnSurface(out.template_mesh.V, rest);
   for (const ShapePose& pose : spec.targets) {
     io::TriangleMesh posed = LoadPosedModel(spec.file, pose);
-    if (posed.F != rest.F) {
+    if (posed.F.cols() != rest.F.cols() || posed.V.cols() != rest.V.cols() || posed.F != rest.F) {
       throw InputError(spec.file.string() + ": pose " + pose.label +
                        " has other faces than the rest pose " + spec.rest.label);
     }
@@ -220,6 +243,10 @@ ShapeCase BuildShapeCase(const ShapeSpec& spec, const ShapeCaseOptions& options)
     ShapeTarget target;
     target.pair = spec.rest.label + "-" + pose.label;
     target.V = PlaceAnchors(anchors, posed);
+    if (!target.V.allFinite()) {
+      throw InputError(spec.file.string() + ": pose " + pose.label +
+                       " collapses a triangle a template vertex is anchored on");
+    }
     target.pose_change_deg = PoseChangeDeg(out.template_mesh.V, target.V);
     out.targets.push_back(std::move(target));
     out.sources.push_back(std::move(posed));
@@ -239,13 +266,8 @@ double PoseChangeDeg(const Eigen::Matrix3Xd& rest, const Eigen::Matrix3Xd& posed
     index.Nearest(rest.col(i), neighbours, &near, &d2);
     Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
     for (int j : near) H += (aligned.col(j) - aligned.col(i)) * (rest.col(j) - rest.col(i)).transpose();
-    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
-    Eigen::Matrix3d R = svd.matrixU() * svd.matrixV().transpose();
-    if (R.determinant() < 0) {
-      Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
-      D(2, 2) = -1;
-      R = svd.matrixU() * D * svd.matrixV().transpose();
-    }
+    const Eigen::Matrix3d R = morph::NearestRotation(
+        Eigen::JacobiSVD<Eigen::Matrix3d>(H, Eigen::ComputeFullU | Eigen::ComputeFullV));
     angles[static_cast<std::size_t>(i)] = Eigen::AngleAxisd(R).angle() * 180.0 / std::numbers::pi;
   }
   const std::size_t k = angles.size() * 9 / 10;

@@ -25,8 +25,11 @@ io::TriangleMesh WrapSurface(const io::TriangleMesh& soup, const WrapOptions& op
 /// barycentric coordinates in it, and the offset from that point in the triangle's own frame
 /// (along the first edge, across it in the plane, along the normal).
 struct SurfaceAnchor {
-  int face = 0;
+  int face = 0;  ///< column of the surface's F
+  /// Weights of the face's three corners, in F's order; they sum to 1.
   Eigen::Vector3d barycentric = Eigen::Vector3d::Zero();
+  /// From the closest point to the anchored point, in the surface's units, along (first edge,
+  /// in-plane perpendicular, face normal).
   Eigen::Vector3d offset = Eigen::Vector3d::Zero();
 };
 
@@ -38,7 +41,8 @@ std::vector<SurfaceAnchor> AnchorOnSurface(const Eigen::Matrix3Xd& points,
 
 /// The anchored points carried onto @p posed: the same triangles (same faces, new vertex
 /// positions), the same barycentric coordinates and the offset in the posed triangle's frame.
-/// @pre posed has the faces the anchors were made on.
+/// @pre posed has the faces the anchors were made on. An anchored face that degenerates in
+///   @p posed gives non-finite columns; the caller checks.
 Eigen::Matrix3Xd PlaceAnchors(const std::vector<SurfaceAnchor>& anchors,
                               const io::TriangleMesh& posed);
 
