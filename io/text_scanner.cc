@@ -59,17 +59,9 @@ bool LineScanner::NextLine() {
 }
 
 double LineScanner::Double(std::size_t i, std::string_view what) const {
-  if (i >= tokens_.size()) {
-    Fail("missing " + std::string(what));
-  }
-  const std::string_view token = tokens_[i];
-  double value = 0.0;
-  const auto [ptr, ec] = std::from_chars(token.data(), token.data() + token.size(), value);
-  if (ec != std::errc() || ptr != token.data() + token.size()) {
-    Fail(std::string(what) + ": '" + std::string(token) + "' is not a number");
-  }
+  const double value = DoubleOrNonFinite(i, what);
   if (!std::isfinite(value)) {
-    Fail(std::string(what) + ": '" + std::string(token) + "' is not finite");
+    Fail(std::string(what) + ": '" + std::string(tokens_[i]) + "' is not finite");
   }
   return value;
 }

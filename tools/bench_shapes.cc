@@ -13,7 +13,6 @@
 #include <map>
 #include <numbers>
 #include <random>
-#include <sstream>
 
 #include <spawn.h>
 #include <sys/wait.h>
@@ -32,8 +31,6 @@
 
 namespace vb::tools {
 namespace {
-
-constexpr const char* kMethods[] = {"identity", "rigid_bound", "coarse", "full"};
 
 // A shape's template and targets, whichever set it comes from.
 struct BenchCase {
