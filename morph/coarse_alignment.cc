@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <chrono>
 #include <limits>
 #include <numbers>
@@ -131,6 +132,17 @@ std::vector<Similarity> PrincipalFrameCandidates(const Eigen::Matrix3Xd& from,
   return out;
 }
 
+// The posed template (normalised frame) brought to the target's frame as the result's mesh.
+void Finish(const TemplateModel& model, const Similarity& to_target, const Eigen::Matrix3Xd& posed,
+            CoarseResult* result) {
+  result->template_to_target = Similarity{to_target.scale * model.size, to_target.R, to_target.t};
+  result->mesh.F = model.mesh.F;
+  result->mesh.V.resize(3, posed.cols());
+  for (Eigen::Index i = 0; i < posed.cols(); ++i) result->mesh.V.col(i) = to_target(posed.col(i));
+  result->mesh.N = io::VertexNormals(result->mesh);
+  result->ok = true;
+}
+
 Eigen::Matrix3Xd EveryNth(const Eigen::Matrix3Xd& points, int wanted) {
   const Eigen::Index step = std::max<Eigen::Index>(1, points.cols() / wanted);
   Eigen::Matrix3Xd out(3, (points.cols() + step - 1) / step);
@@ -193,8 +205,8 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
                                                 target, candidate.from_to));
   }
   // The skeleton fits are only as good as the skeletons: the best few placements are
-  // refined against the surfaces before the final choice (README: placed clouds at sigma
-  // 16 mm 87 -> 97 %).
+  // refined against the surfaces before the final choice (docs/decisions.md: placed clouds
+  // at sigma 16 mm 87 -> 97 %).
   if (options.refine_iterations > 0) {
     std::vector<std::size_t> order(candidates.size());
     for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
@@ -237,9 +249,57 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
       candidates.push_back(std::move(candidate));
     }
   }
+  // The posture fit on the best distinct placements: the true one is the one whose limbs,
+  // once turned into the target's pose, cover the target best. Rigid disagreement alone
+  // cannot tell a body facing forward from one facing back when the limbs differ.
+  std::vector<double> articulated(candidates.size(), std::numeric_limits<double>::infinity());
+  std::vector<DeformationState> articulated_states(candidates.size());
+  if (options.articulated_candidates > 0 && !candidates.empty()) {
+    std::vector<std::size_t> order(candidates.size());
+    for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+    std::sort(order.begin(), order.end(),
+              [&](std::size_t a, std::size_t b) { return disagreements[a] < disagreements[b]; });
+    const double cos_distinct = std::cos(options.distinct_angle_deg * std::numbers::pi / 180.0);
+    std::vector<std::size_t> picked;
+    for (std::size_t k : order) {
+      if (static_cast<int>(picked.size()) >= options.articulated_candidates) break;
+      bool distinct = true;
+      for (std::size_t p : picked) {
+        const Eigen::Matrix3d relative =
+            candidates[k].from_to.R * candidates[p].from_to.R.transpose();
+        if (0.5 * (relative.trace() - 1.0) >= cos_distinct) distinct = false;
+      }
+      if (distinct) picked.push_back(k);
+    }
+    ArticulationOptions choice = options.articulation;
+    choice.rounds = std::min(choice.rounds, options.choice_rounds);
+    for (std::size_t k : picked) {
+      const Similarity back = candidates[k].from_to.Inverse();
+      Eigen::Matrix3Xd placed(3, target.cols());
+      for (Eigen::Index i = 0; i < target.cols(); ++i) placed.col(i) = back(target.col(i));
+      const PointIndex placed_index(placed);
+      Eigen::Matrix3Xd tips(3, result.target_features.num_terminals());
+      for (Eigen::Index i = 0; i < tips.cols(); ++i)
+        tips.col(i) = back(result.target_features.terminals.col(i));
+      ArticulationResult fit =
+          ArticulateTemplate(model, placed, placed_index, tips,
+                             DeformationState::Identity(model.graph.num_nodes()), choice);
+      if (!fit.ok) continue;
+      articulated[k] = fit.disagreement;
+      articulated_states[k] = std::move(fit.state);
+    }
+  }
+  const bool use_articulated = std::any_of(articulated.begin(), articulated.end(),
+                                           [](double d) { return std::isfinite(d); });
+  std::size_t chosen = 0;
   if (!candidates.empty()) {
-    const std::size_t chosen = static_cast<std::size_t>(
-        std::min_element(disagreements.begin(), disagreements.end()) - disagreements.begin());
+    const std::vector<double>& score = use_articulated ? articulated : disagreements;
+    chosen = static_cast<std::size_t>(std::min_element(score.begin(), score.end()) - score.begin());
+    if (use_articulated) {
+      // Compared on the articulated scores, template sizes: disagreements are rescaled below.
+      for (std::size_t k = 0; k < candidates.size(); ++k)
+        disagreements[k] = articulated[k] * candidates[chosen].from_to.scale;
+    }
     result.association = candidates[chosen];
     result.placed_by_skeletons = chosen < skeleton_candidates;
     const double scale = result.association.from_to.scale;  // target units per template size
@@ -290,6 +350,35 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   const Similarity to_target = result.association.from_to;
   const Similarity to_template = to_target.Inverse();
 
+  if (use_articulated && result.association.ok) {
+    // Go on from the chosen candidate's pose for the remaining rounds.
+    phase = std::chrono::steady_clock::now();
+    Eigen::Matrix3Xd placed(3, target.cols());
+    for (Eigen::Index i = 0; i < target.cols(); ++i) placed.col(i) = to_template(target.col(i));
+    const PointIndex placed_index(placed);
+    ArticulationOptions rest = options.articulation;
+    rest.rounds = std::max(0, options.articulation.rounds - options.choice_rounds);
+    rest.stiffness_start = std::max(
+        options.articulation.min_stiffness,
+        options.articulation.stiffness_start *
+            std::pow(options.articulation.stiffness_decay, options.choice_rounds));
+    Eigen::Matrix3Xd tips(3, result.target_features.num_terminals());
+    for (Eigen::Index i = 0; i < tips.cols(); ++i)
+      tips.col(i) = to_template(result.target_features.terminals.col(i));
+    ArticulationResult fit =
+        ArticulateTemplate(model, placed, placed_index, tips, articulated_states[chosen], rest);
+    result.state = std::move(fit.state);
+    result.disagreement = fit.disagreement;
+    result.deformation.usable = true;
+    result.deformation.iterations = options.choice_rounds + fit.rounds;
+    result.deformation.message = "posture fit";
+    result.deformation_seconds = Since(phase);
+    Finish(model, to_target, DeformPoints(model.graph, model.vertex_weights, model.V, result.state),
+           &result);
+    result.total_seconds = Since(start);
+    return result;
+  }
+
   // Embedded deformation in the template's normalised frame, pulling each matched template
   // terminal to its partner brought back by the inverse similarity. Measured on the
   // benchmark: adding the junctions, or points along the skeleton paths between terminals,
@@ -324,13 +413,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     }
   }
 
-  // Back to the target's frame.
-  result.template_to_target = Similarity{to_target.scale * model.size, to_target.R, to_target.t};
-  result.mesh.F = model.mesh.F;
-  result.mesh.V.resize(3, posed.cols());
-  for (Eigen::Index i = 0; i < posed.cols(); ++i) result.mesh.V.col(i) = to_target(posed.col(i));
-  result.mesh.N = io::VertexNormals(result.mesh);
-  result.ok = true;
+  Finish(model, to_target, posed, &result);
   result.total_seconds = Since(start);
   return result;
 }

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "io/triangle_mesh.h"
+#include "morph/articulated_fit.h"
 #include "morph/cloud_skeleton.h"
 #include "morph/embedded_deformation.h"
 #include "morph/feature_association.h"
@@ -51,6 +52,14 @@ struct CoarseOptions {
   /// Candidates whose rotations differ by more than this are different placements.
   double distinct_angle_deg = 30.0;
   EmbeddedDeformationOptions deformation;
+  /// The best this many distinct placements (by rigid disagreement) are each given the
+  /// posture fit (ArticulateTemplate) and the one that then fits the target best is chosen;
+  /// 0: the rigid choice and the terminal-driven deformation alone.
+  int articulated_candidates = 4;
+  /// Rounds of the posture fit on each candidate before the choice; the chosen one is then
+  /// fitted for all of `articulation.rounds`.
+  int choice_rounds = 3;
+  ArticulationOptions articulation;
 };
 
 /// The outcome of the coarse stage. Expected trouble (a skeleton with too few feature nodes,

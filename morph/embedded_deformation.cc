@@ -70,7 +70,7 @@ struct RigidityCost {
 class DataCost final : public ceres::CostFunction {
  public:
   DataCost(const PointConstraint& c, const DeformationGraph& graph, double weight)
-      : c_(c), w_(std::sqrt(weight)), plane_(!c.normal.isZero()) {
+      : c_(c), w_(std::sqrt(weight * c.weight)), plane_(!c.normal.isZero()) {
     for (int node : c.nodes) {
       mutable_parameter_block_sizes()->push_back(9);
       mutable_parameter_block_sizes()->push_back(3);

@@ -43,6 +43,8 @@ struct PointConstraint {
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();
   std::vector<int> nodes;  ///< nodes acting on the point
   std::vector<double> weights;
+  /// Multiplies the data weight (w_data) of this constraint; positive.
+  double weight = 1.0;
 };
 
 /// The constraint on point @p column of @p weights (its nodes and eq. 10 weights), moving

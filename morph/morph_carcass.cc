@@ -15,6 +15,7 @@ double Since(std::chrono::steady_clock::time_point start) {
 MorphOptions WithDeadline(const MorphOptions& options) {
   MorphOptions o = options;
   o.coarse.deformation.deadline = options.deadline;
+  o.coarse.articulation.deformation.deadline = options.deadline;
   o.dense.deformation.deadline = options.deadline;
   return o;
 }

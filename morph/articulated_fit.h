@@ -1,0 +1,92 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <utility>
+#include <vector>
+
+#include "morph/embedded_deformation.h"
+#include "morph/point_index.h"
+#include "morph/template_model.h"
+
+namespace vb::morph {
+
+/// Rounds of the coarse stage's posture fit. Lengths are template sizes.
+struct ArticulationOptions {
+  /// Rounds of pairing -> trimming -> deformation, each from the previous pose.
+  int rounds = 6;
+  /// Template vertices and target points paired per round (evenly spread).
+  int template_samples = 600;
+  int target_samples = 600;
+  /// Of each side's pairs, the nearest this fraction are kept (eq. 12's trimming, by
+  /// distance): a region the target does not show (a camera shadow, a lost limb) has
+  /// far partners only and does not pull.
+  double keep_fraction = 0.8;
+  /// w_rot, w_reg and w_rig start at the deformation options' values times this and are
+  /// multiplied by stiffness_decay each round, down to min_stiffness: stiff first, so limbs
+  /// turn as wholes, then free enough to bend at the joints.
+  double stiffness_start = 1.0;
+  double stiffness_decay = 0.5;
+  double min_stiffness = 0.1;
+  /// Limb ends: each round, the template's terminals (posed) and the target's are paired as
+  /// mutual nearest within terminal_radius, and each pair pulls with terminal_weight times a
+  /// surface pair's weight; closest points alone cannot tell which limb a tip belongs to
+  /// once limbs have moved far. 0 turns it off.
+  /// Off by default: measured on bench shapes it helped the humanoids' coarse stage and hurt
+  /// the bison's and spider's (docs/decisions.md).
+  double terminal_radius = 0.12;
+  double terminal_weight = 0.0;
+  /// The data weight per graph node: each pair's weight is w_data times the node count over
+  /// the pair count, so the balance with the regularisers does not depend on the sampling.
+  /// Conjugate gradients: with hundreds of pairs each coupling several nodes they reach the
+  /// same poses as sparse Cholesky in half the time (docs/decisions.md).
+  EmbeddedDeformationOptions deformation{
+      .w_data = 10.0,
+      .max_iterations = 10,
+      .linear_solver = EmbeddedDeformationOptions::LinearSolver::kConjugateGradients,
+      .function_tolerance = 1e-4,
+      .deadline = {}};
+};
+
+/// A pose of the template and how well it covers the target.
+struct ArticulationResult {
+  bool ok = false;
+  DeformationState state;
+  /// Trimmed two-way disagreement after the last round: mean of the kept closest-point
+  /// distances, template sizes.
+  double disagreement = 0.0;
+  /// How far the pose bends the template: the mean distance of the posed samples from the
+  /// best similarity image of their rest positions, template sizes.
+  double bend = 0.0;
+  int rounds = 0;
+  double seconds = 0.0;
+};
+
+/// The pairs (i, j) of columns of @p a and @p b that are each other's nearest and lie within
+/// @p radius.
+std::vector<std::pair<int, int>> MutualNearestPairs(const Eigen::Matrix3Xd& a,
+                                                    const Eigen::Matrix3Xd& b, double radius);
+
+/// How far apart two point sets are, robust to parts one of them lacks: the mean of the
+/// nearest @p keep_fraction of the distances from each column of @p a to the points
+/// @p b_index holds, and likewise from each column of @p b_samples to those @p a_index
+/// holds, averaged. In the points' units.
+double TrimmedDisagreement(const Eigen::Matrix3Xd& a, const PointIndex& a_index,
+                           const Eigen::Matrix3Xd& b_samples, const PointIndex& b_index,
+                           double keep_fraction);
+
+/// Non-rigid closest-point fitting of the template's posture to a target already placed in
+/// the template's normalised frame: each round pairs template samples with their nearest
+/// target points and target samples with their nearest template samples, keeps the nearest
+/// pairs of each side, and solves the embedded deformation (eqs. 4-10) with them as point
+/// constraints, starting from @p start.
+/// @param[in] target 3 by N points in the template's normalised frame; @p target_index
+/// indexes them.
+/// @param[in] target_terminals 3 by T limb ends of the target's skeleton in the same frame
+/// (may be empty).
+ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::Matrix3Xd& target,
+                                      const PointIndex& target_index,
+                                      const Eigen::Matrix3Xd& target_terminals,
+                                      const DeformationState& start,
+                                      const ArticulationOptions& options);
+
+}  // namespace vb::morph
