@@ -61,15 +61,13 @@ double TrimmedDisagreement(const Eigen::Matrix3Xd& a, const PointIndex& a_index,
   VB_DEMAND(a_index.size() > 0 && b_index.size() > 0);
   std::vector<double> forward(static_cast<std::size_t>(a.cols()));
   std::vector<double> backward(static_cast<std::size_t>(b_samples.cols()));
+  std::vector<int> k;
+  std::vector<double> d2;
   for (Eigen::Index i = 0; i < a.cols(); ++i) {
-    std::vector<int> k;
-    std::vector<double> d2;
     b_index.Nearest(a.col(i), 1, &k, &d2);
     forward[static_cast<std::size_t>(i)] = std::sqrt(d2.front());
   }
   for (Eigen::Index i = 0; i < b_samples.cols(); ++i) {
-    std::vector<int> k;
-    std::vector<double> d2;
     a_index.Nearest(b_samples.col(i), 1, &k, &d2);
     backward[static_cast<std::size_t>(i)] = std::sqrt(d2.front());
   }

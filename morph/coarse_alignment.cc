@@ -68,23 +68,11 @@ Similarity RefineSimilarity(const Eigen::Matrix3Xd& template_samples,
   return fit;
 }
 
-// Pairs each `from` node, placed by `fit`, with its mutual nearest `to` node when they lie
-// within `radius`: the pairing the chosen placement implies.
-std::vector<std::pair<int, int>> MutualNearest(const Eigen::Matrix3Xd& from,
-                                               const Eigen::Matrix3Xd& to, const Similarity& fit,
-                                               double radius) {
-  std::vector<std::pair<int, int>> pairs;
-  if (from.cols() == 0 || to.cols() == 0) return pairs;
-  Eigen::Matrix3Xd placed(3, from.cols());
-  for (Eigen::Index i = 0; i < from.cols(); ++i) placed.col(i) = fit(from.col(i));
-  for (Eigen::Index i = 0; i < placed.cols(); ++i) {
-    Eigen::Index j = 0, back = 0;
-    const double d2 = (to.colwise() - placed.col(i)).colwise().squaredNorm().minCoeff(&j);
-    (placed.colwise() - to.col(j)).colwise().squaredNorm().minCoeff(&back);
-    if (back == i && d2 <= radius * radius)
-      pairs.emplace_back(static_cast<int>(i), static_cast<int>(j));
-  }
-  return pairs;
+// Each column of @p points moved by @p fit.
+Eigen::Matrix3Xd Apply(const Similarity& fit, const Eigen::Matrix3Xd& points) {
+  Eigen::Matrix3Xd out(3, points.cols());
+  for (Eigen::Index i = 0; i < points.cols(); ++i) out.col(i) = fit(points.col(i));
+  return out;
 }
 
 // A fit a placement can be built on: degenerate targets (all points in one spot) give a zero
@@ -275,14 +263,11 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     choice.rounds = std::min(choice.rounds, options.choice_rounds);
     for (std::size_t k : picked) {
       const Similarity back = candidates[k].from_to.Inverse();
-      Eigen::Matrix3Xd placed(3, target.cols());
-      for (Eigen::Index i = 0; i < target.cols(); ++i) placed.col(i) = back(target.col(i));
+      const Eigen::Matrix3Xd placed = Apply(back, target);
       const PointIndex placed_index(placed);
-      Eigen::Matrix3Xd tips(3, result.target_features.num_terminals());
-      for (Eigen::Index i = 0; i < tips.cols(); ++i)
-        tips.col(i) = back(result.target_features.terminals.col(i));
       ArticulationResult fit =
-          ArticulateTemplate(model, placed, placed_index, tips,
+          ArticulateTemplate(model, placed, placed_index,
+                             Apply(back, result.target_features.terminals),
                              DeformationState::Identity(model.graph.num_nodes()), choice);
       if (!fit.ok) continue;
       articulated[k] = fit.disagreement;
@@ -321,10 +306,12 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   if (result.association.ok && options.repair_radius > 0) {
     const double radius = options.repair_radius * result.association.from_to.scale;
     Association repaired = result.association;
-    repaired.terminals = MutualNearest(model.features.terminals, result.target_features.terminals,
-                                       result.association.from_to, radius);
-    repaired.junctions = MutualNearest(model.features.junctions, result.target_features.junctions,
-                                       result.association.from_to, radius);
+    // The pairing the chosen placement implies.
+    const Similarity& fit = result.association.from_to;
+    repaired.terminals = MutualNearestPairs(Apply(fit, model.features.terminals),
+                                            result.target_features.terminals, radius);
+    repaired.junctions = MutualNearestPairs(Apply(fit, model.features.junctions),
+                                            result.target_features.junctions, radius);
     const bool from_frame = result.association.terminals.empty();  // a frame candidate
     if (from_frame || (repaired.terminals.size() >= 2 &&
                        repaired.terminals.size() + repaired.junctions.size() >= 3)) {
@@ -353,8 +340,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   if (use_articulated && result.association.ok) {
     // Go on from the chosen candidate's pose for the remaining rounds.
     phase = std::chrono::steady_clock::now();
-    Eigen::Matrix3Xd placed(3, target.cols());
-    for (Eigen::Index i = 0; i < target.cols(); ++i) placed.col(i) = to_template(target.col(i));
+    const Eigen::Matrix3Xd placed = Apply(to_template, target);
     const PointIndex placed_index(placed);
     ArticulationOptions rest = options.articulation;
     rest.rounds = std::max(0, options.articulation.rounds - options.choice_rounds);
@@ -362,11 +348,10 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
         options.articulation.min_stiffness,
         options.articulation.stiffness_start *
             std::pow(options.articulation.stiffness_decay, options.choice_rounds));
-    Eigen::Matrix3Xd tips(3, result.target_features.num_terminals());
-    for (Eigen::Index i = 0; i < tips.cols(); ++i)
-      tips.col(i) = to_template(result.target_features.terminals.col(i));
     ArticulationResult fit =
-        ArticulateTemplate(model, placed, placed_index, tips, articulated_states[chosen], rest);
+        ArticulateTemplate(model, placed, placed_index,
+                           Apply(to_template, result.target_features.terminals),
+                           articulated_states[chosen], rest);
     result.state = std::move(fit.state);
     result.disagreement = fit.disagreement;
     result.deformation.usable = true;
