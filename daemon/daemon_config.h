@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "io/lcm_publisher.h"
 #include "morph/coarse_alignment.h"
@@ -41,6 +42,7 @@ struct JobOptions {
   std::filesystem::path state_file = "/var/lib/virtualbutcher/job-state";
   /// When set, every job's fused cloud and cut lines are written here (last_fused.ply,
   /// last_cuts.csv), replacing the previous job's: for operators and the demo's picture.
+  /// "" in the file: none.
   std::filesystem::path dump_dir;
 };
 
@@ -52,8 +54,6 @@ struct MorphSection {
 };
 
 struct CanOptions {
-  /// SocketCAN interface, or "loopback" for an in-process reference saw controller (for
-  /// machines without CAN; the demo and tests say when they use it).
   /// A SocketCAN interface, "loopback" (an in-process reference saw controller, for
   /// machines without CAN) or "unix:PATH" (the reference saw in another process,
   /// `vbutcher saw-sim --unix PATH`). The demo and tests say which they use.
@@ -62,7 +62,8 @@ struct CanOptions {
   /// How long after a job's last frame the saw's answer may take; without one the job is
   /// unconfirmed (and never resent).
   int answer_timeout_ms = 250;
-  /// When set, every frame sent to the saw is also written here (candump -L format).
+  /// When set, every frame sent to the saw is also written here (candump -L format). "" in
+  /// the file: none.
   std::filesystem::path record;
 };
 
@@ -89,6 +90,10 @@ struct DaemonConfig {
   perception::RigCalibration rig;
   /// Optional: run against the virtual rig described by this scene ($VB_VIRTUAL_SCENE).
   std::filesystem::path virtual_scene;
+  /// A virtual scene or virtual cameras (vbrig:// URIs, .oni recordings) may drive a real
+  /// SocketCAN interface only when this is set; then every log line and status says
+  /// SIMULATION.
+  bool simulation = false;
   perception::CaptureOptions capture;
   perception::FusionOptions fusion;
   JobOptions job;
@@ -102,8 +107,34 @@ struct DaemonConfig {
 };
 
 /// Loads and validates @p path and the rig calibration it names; checks the template file
-/// exists and is readable (the daemon loads and verifies it next).
-/// @throws InputError "file:line: key: problem" for anything wrong.
+/// exists (the daemon loads and verifies it next). A relative `template` is looked for next
+/// to the file, then in the program's data folders (<program>/../share/virtualbutcher for an
+/// install, <program>/../share in a build tree).
+/// @throws InputError listing every problem of the file, one per line, each
+///   "file:line: key: problem" (a repeated key names both lines). YAML syntax, format and
+///   version problems stop the reading at the first.
 DaemonConfig LoadDaemonConfig(const std::filesystem::path& path);
+
+/// Every key the file may hold, sections' keys dotted ("capture.fps").
+std::vector<std::string> DaemonConfigKeys();
+
+/// What this machine must offer @p config before the daemon can start, checked now: the CAN
+/// interface exists and is a CAN interface (SocketCAN); the folders of can.record and
+/// job.dump_dir exist. @return one "file: key: problem" line per problem, none when ready.
+/// @p warnings gets what degrades without stopping (no job.state_file folder: carcass numbers
+/// then start from the clock).
+std::vector<std::string> CheckMachine(const DaemonConfig& config,
+                                      std::vector<std::string>* warnings);
+
+/// True when @p config captures from something other than real cameras (a virtual scene,
+/// vbrig:// URIs, .oni recordings).
+bool UsesVirtualCameras(const DaemonConfig& config);
+/// True when @p config drives a SocketCAN interface (not "loopback" or "unix:").
+bool UsesSocketCan(const DaemonConfig& config);
+
+/// Checks an LCM URL the daemon publishes on: "memq://" or
+/// "udpm://A.B.C.D:PORT[?ttl=N[&recv_buf_size=B]]" with a multicast address (224-239.x.x.x),
+/// a port in [1, 65535], ttl in [0, 255]. @return empty when good, else what is wrong.
+std::string CheckLcmUrl(const std::string& url);
 
 }  // namespace vb::daemon

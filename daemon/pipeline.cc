@@ -7,9 +7,11 @@
 #include <fstream>
 
 #include "daemon/job.h"
+#include "daemon/log.h"
 #include "daemon/memory_budget.h"
 #include "io/mesh_io.h"
 #include "io/saw_protocol.h"
+#include "io/version.h"
 #include "morph/morph_carcass.h"
 
 namespace vb::daemon {
@@ -27,11 +29,15 @@ double SecondsSince(std::int64_t monotonic_ns) {
   return static_cast<double>(perception::MonotonicNs() - monotonic_ns) * 1e-9;
 }
 
-std::int8_t LcmHealth(perception::CameraHealth h) {
-  switch (h) {
+// A camera (re)opened and waiting for its first frame is STARTING the first time, RECOVERING
+// after a stream restart or device reopen; neither counts as OK.
+std::int8_t LcmHealth(const perception::CameraStatus& s) {
+  switch (s.health) {
     case perception::CameraHealth::kOk:
-    case perception::CameraHealth::kStarting:
       return vbutcher::camera_health_t::OK;
+    case perception::CameraHealth::kStarting:
+      return s.stream_restarts + s.device_reopens > 0 ? vbutcher::camera_health_t::RECOVERING
+                                                      : vbutcher::camera_health_t::STARTING;
     case perception::CameraHealth::kFrozen:
       return vbutcher::camera_health_t::FROZEN;
     case perception::CameraHealth::kMissing:
@@ -40,6 +46,38 @@ std::int8_t LcmHealth(perception::CameraHealth h) {
       return vbutcher::camera_health_t::LOW_VALID;
   }
   return vbutcher::camera_health_t::MISSING;
+}
+
+std::int64_t WallMicrosOf(std::int64_t monotonic_ns) {
+  return monotonic_ns == 0 ? 0 : WallMicros() - (perception::MonotonicNs() - monotonic_ns) / 1000;
+}
+
+const char* StateName(io::saw::DaemonState state) {
+  switch (state) {
+    case io::saw::DaemonState::kReady:
+      return "ready";
+    case io::saw::DaemonState::kBusy:
+      return "morphing";
+    case io::saw::DaemonState::kDegraded:
+      return "DEGRADED";
+    case io::saw::DaemonState::kFault:
+      return "FAULT";
+  }
+  return "FAULT";
+}
+
+std::int8_t LcmState(io::saw::DaemonState state) {
+  switch (state) {
+    case io::saw::DaemonState::kReady:
+      return vbutcher::status_t::READY;
+    case io::saw::DaemonState::kBusy:
+      return vbutcher::status_t::BUSY;
+    case io::saw::DaemonState::kDegraded:
+      return vbutcher::status_t::DEGRADED;
+    case io::saw::DaemonState::kFault:
+      return vbutcher::status_t::FAULT;
+  }
+  return vbutcher::status_t::FAULT;
 }
 
 }  // namespace
@@ -89,6 +127,7 @@ Pipeline::Pipeline(const DaemonConfig& config, morph::TemplateArtifact artifact,
   if (!numbers_.warning().empty())
     start_warning_ += (start_warning_.empty() ? "" : "; ") + numbers_.warning();
   morph_options_.coarse.upright = config_.morph.upright;
+  version_ = std::string(Version()) + " (" + GitRevision() + ")";
   fusion_ = std::make_unique<perception::Fusion>(config_.rig, config_.fusion);
   slot_cloud_ = fusion_->MakeOutput();
   camera_status_.resize(config_.rig.cameras.size());
@@ -134,12 +173,35 @@ void Pipeline::CaptureLoop() {
   // arrived: the job is refused naming it.
   std::string capture_fault;
   capture_fault.reserve(160);
+  // Each camera's state as last logged: a change is logged (and sent on VB_DIAGNOSTICS) when
+  // it happens.
+  std::vector<std::int8_t> logged(static_cast<std::size_t>(n), -1);
   while (!stop_) {
     capture.Poll();
     capture_alive_ns_ = perception::MonotonicNs();
     {
       std::lock_guard<std::mutex> lock(state_mutex_);
       for (int c = 0; c < n; ++c) camera_status_[static_cast<std::size_t>(c)] = capture.status(c);
+    }
+    for (int c = 0; c < n; ++c) {
+      const perception::CameraStatus& status = capture.status(c);
+      const std::int8_t now = LcmHealth(status);
+      std::int8_t& before = logged[static_cast<std::size_t>(c)];
+      if (now == before) continue;
+      const bool first = before < 0;
+      before = now;
+      if (first && now == vbutcher::camera_health_t::STARTING) continue;  // opening, as expected
+      const perception::CameraCalibration& camera = capture.calibration(c);
+      char text[256];
+      std::snprintf(text, sizeof text, "camera %s (serial %s) is %s%s%s", camera.name.c_str(),
+                    camera.serial.c_str(),
+                    now == vbutcher::camera_health_t::RECOVERING ? "recovering"
+                                                                 : perception::ToString(status.health),
+                    *status.last_error != 0 ? ": " : "", status.last_error);
+      const bool ok = now == vbutcher::camera_health_t::OK;
+      Log(ok ? Priority::kInfo : Priority::kWarning, "%s", text);
+      Diagnose(ok ? vbutcher::diagnostic_t::INFO : vbutcher::diagnostic_t::WARNING,
+               "camera:" + camera.name, text);
     }
     if (!perception::FrameSetReady(capture, since)) continue;
     int used = 0;
@@ -186,16 +248,16 @@ void Pipeline::CaptureLoop() {
       if (absent_sets >= config_.job.settle_sets) {
         // How much the picture of a carcass that stayed changed: what job.new_carcass_change
         // must stay above on this line.
-        std::fprintf(stderr,
-                     "<6>virtualbutcherd: the carcass left; while it hung its depth picture "
+        Log(Priority::kInfo,
+                     "the carcass left; while it hung its depth picture "
                      "changed by at most %.0f %% (a new carcass above %.0f %%)\n",
                      100 * largest_change, 100 * config_.job.new_carcass_change);
         carcass_taken = false;
         present_sets = 0;
         capture_fault.clear();
       } else if (changed_sets >= config_.job.settle_sets) {
-        std::fprintf(stderr,
-                     "<5>virtualbutcherd: the carcass on the hook changed without an empty-hook "
+        Log(Priority::kNotice,
+                     "the carcass on the hook changed without an empty-hook "
                      "gap (%.0f %% of its depth readings): taken as a new carcass\n",
                      100 * change);
         carcass_taken = false;
@@ -251,8 +313,8 @@ void Pipeline::CaptureLoop() {
       std::lock_guard<std::mutex> lock(slot_mutex_);
       if (slot_full_) {  // newest wins: the line runs faster than the morph
         ++jobs_replaced_;
-        std::fprintf(stderr,
-                     "<4>virtualbutcherd: a carcass waiting for the morph was replaced by a "
+        Log(Priority::kWarning,
+                     "a carcass waiting for the morph was replaced by a "
                      "newer one and gets no job (%ld so far): the line runs faster than the "
                      "morph\n",
                      jobs_replaced_);
@@ -343,7 +405,7 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
   std::string state_error;
   const JobNumbers::Ids ids = numbers_.Next(&state_error);
   if (!state_error.empty())
-    std::fprintf(stderr, "<4>virtualbutcherd: %s\n", state_error.c_str());
+    Log(Priority::kWarning, "%s\n", state_error.c_str());
   report.carcass_id = JobNumbers::Name(ids.carcass);
   report.fusion_s = fusion_s;
   report.fused_points = static_cast<int>(points.cols());
@@ -351,7 +413,7 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
   // A refused carcass (a camera down) is not morphed at all: a missing cut is recoverable.
   morph::CarcassResult result;
   if (refusal.empty()) {
-    std::fprintf(stderr, "<6>virtualbutcherd: %s: morphing %d points\n",
+    Log(Priority::kInfo, "%s: morphing %d points\n",
                  report.carcass_id.c_str(), report.fused_points);
     morph::MorphOptions options = morph_options_;
     options.deadline.at =
@@ -381,9 +443,39 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
   message.saw_verdict = static_cast<std::int8_t>(outcome.verdict);
   message.status = outcome.verdict == Verdict::kAccepted ? "accepted" : outcome.reason;
   if (!publisher_->Publish(message))
-    std::fprintf(stderr, "<4>virtualbutcherd: cut lines of %s not published: %s\n",
+    Log(Priority::kWarning, "cut lines of %s not published: %s\n",
                  report.carcass_id.c_str(), publisher_->last_error().c_str());
   if (!config_.job.dump_dir.empty()) Dump(points, normals, result);
+  // Per job on VB_DIAGNOSTICS: what an engineer needs to tell why a carcass was not cut.
+  {
+    char text[900];
+    int n = std::snprintf(text, sizeof text, "%s: %s%s%s; %d points; fusion %.3f s, ",
+                          report.carcass_id.c_str(), ToString(outcome.verdict),
+                          outcome.reason.empty() ? "" : ": ", outcome.reason.c_str(),
+                          report.fused_points, fusion_s);
+    if (!refusal.empty()) {
+      std::snprintf(text + n, sizeof text - static_cast<std::size_t>(n), "not morphed");
+    } else {
+      n += std::snprintf(
+          text + n, sizeof text - static_cast<std::size_t>(n),
+          "morph %.3f s (coarse %.3f, dense %.3f, cuts %.3f), send %.3f s, answer %.3f s, "
+          "latency %.3f s; noise %.1f mm; morph check %.2f (ambiguity %.2f, unexplained %.2f, "
+          "stretch %.2f)%s%s; cut confidence",
+          result.seconds, result.coarse.total_seconds, result.dense.total_seconds,
+          result.cuts_seconds, outcome.send_s, outcome.answer_s, report.latency_s,
+          1000 * result.dense.noise * artifact_.model.size, result.check.confidence,
+          result.check.ambiguity, result.check.unexplained, result.check.stretch,
+          result.check.concern.empty() ? "" : ": ", result.check.concern.c_str());
+      for (std::size_t c = 0; c < result.cuts.size() && n < static_cast<int>(sizeof text); ++c)
+        n += std::snprintf(text + n, sizeof text - static_cast<std::size_t>(n), " %s %.2f",
+                           result.cuts[c].name.c_str(), result.cuts[c].confidence);
+      if (result.cuts.empty() && n < static_cast<int>(sizeof text))
+        std::snprintf(text + n, sizeof text - static_cast<std::size_t>(n), " none");
+    }
+    Diagnose(outcome.verdict == Verdict::kAccepted ? vbutcher::diagnostic_t::INFO
+                                                   : vbutcher::diagnostic_t::WARNING,
+             "job", text);
+  }
   std::lock_guard<std::mutex> lock(state_mutex_);
   ++verdicts_[outcome.verdict];
   last_ = report;
@@ -404,7 +496,7 @@ void Pipeline::Dump(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& norm
         out << c.name << ',' << i << ',' << c.line[i].x() << ',' << c.line[i].y() << ','
             << c.line[i].z() << '\n';
   } catch (const std::exception& e) {  // a full disk must not stop the line
-    std::fprintf(stderr, "<4>virtualbutcherd: cannot write to %s: %s\n",
+    Log(Priority::kWarning, "cannot write to %s: %s\n",
                  config_.job.dump_dir.c_str(), e.what());
   }
 }
@@ -432,6 +524,18 @@ bool Pipeline::Tick() {
     state = io::saw::DaemonState::kDegraded;
   else if (busy_)
     state = io::saw::DaemonState::kBusy;
+  const io::saw::DaemonState before = state_.exchange(state);
+  if (state != before && (state == io::saw::DaemonState::kFault ||
+                          before == io::saw::DaemonState::kFault)) {
+    const char* what = state == io::saw::DaemonState::kFault
+                           ? (!capture_ok ? "FAULT: the capture thread stopped looping"
+                                          : "FAULT: the job thread is stuck past its deadline")
+                           : "the FAULT cleared";
+    Log(state == io::saw::DaemonState::kFault ? Priority::kError : Priority::kNotice, "%s", what);
+    Diagnose(state == io::saw::DaemonState::kFault ? vbutcher::diagnostic_t::ERROR
+                                                   : vbutcher::diagnostic_t::INFO,
+             "daemon", what);
+  }
   saw_->SendHeartbeat(state, uptime_ms_);
   uptime_ms_ += io::saw::kHeartbeatPeriodMs;
   saw_->Poll();
@@ -446,22 +550,20 @@ void Pipeline::PublishStatus() {
   vbutcher::status_t s;
   s.utime = WallMicros();
   std::lock_guard<std::mutex> lock(state_mutex_);
-  bool degraded = false;
   for (std::size_t c = 0; c < camera_status_.size(); ++c) {
     vbutcher::camera_health_t h;
     h.name = config_.rig.cameras[c].name;
     h.serial = config_.rig.cameras[c].serial;
-    h.state = LcmHealth(camera_status_[c].health);
-    degraded |= h.state != vbutcher::camera_health_t::OK;
+    h.state = LcmHealth(camera_status_[c]);
     h.valid_ratio = static_cast<float>(camera_status_[c].valid_ratio);
-    h.fps = static_cast<float>(config_.capture.fps);
-    h.last_frame_utime = 0;
+    h.fps = static_cast<float>(camera_status_[c].fps);
+    h.last_frame_utime = WallMicrosOf(camera_status_[c].last_frame_ns);
     s.cameras.push_back(h);
   }
   s.num_cameras = static_cast<std::int8_t>(s.cameras.size());
-  s.state = degraded ? vbutcher::status_t::DEGRADED
-                     : (busy_.load() ? vbutcher::status_t::BUSY : vbutcher::status_t::READY);
+  s.state = LcmState(state_.load());
   s.state_text = StatusLineLocked();
+  s.version = version_;
   s.can_state = saw_->link_state();
   s.capture_latency_s = 0;
   s.fusion_latency_s = static_cast<float>(last_.fusion_s);
@@ -479,6 +581,52 @@ std::string Pipeline::StatusLine() const {
   return StatusLineLocked();
 }
 
+std::string Pipeline::CameraSummaryLocked() const {
+  // "cameras 4 of 4 ok", or which are not and why.
+  int ok = 0;
+  for (const perception::CameraStatus& s : camera_status_)
+    ok += s.health == perception::CameraHealth::kOk;
+  char text[400];
+  int n = std::snprintf(text, sizeof text, "cameras %d of %zu ok", ok, camera_status_.size());
+  const char* separator = " (";
+  for (std::size_t c = 0; c < camera_status_.size() && n < static_cast<int>(sizeof text); ++c) {
+    const perception::CameraStatus& s = camera_status_[c];
+    if (s.health == perception::CameraHealth::kOk) continue;
+    const std::int8_t health = LcmHealth(s);
+    n += std::snprintf(text + n, sizeof text - static_cast<std::size_t>(n), "%s%s %s%s%s",
+                       separator, config_.rig.cameras[c].name.c_str(),
+                       health == vbutcher::camera_health_t::RECOVERING ? "recovering"
+                                                                       : perception::ToString(s.health),
+                       *s.last_error != 0 ? ": " : "", s.last_error);
+    separator = "; ";
+  }
+  if (ok < static_cast<int>(camera_status_.size()) && n < static_cast<int>(sizeof text))
+    std::snprintf(text + n, sizeof text - static_cast<std::size_t>(n), ")");
+  return text;
+}
+
+std::string Pipeline::CameraSummary() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return CameraSummaryLocked();
+}
+
+bool Pipeline::CamerasSettled() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  for (const perception::CameraStatus& s : camera_status_)
+    if (s.health == perception::CameraHealth::kStarting) return false;
+  return true;
+}
+
+void Pipeline::Diagnose(std::int8_t level, const std::string& source, const std::string& text) {
+  vbutcher::diagnostic_t d;
+  d.utime = WallMicros();
+  d.level = level;
+  d.source = source;
+  d.message = LogSimulation() ? "SIMULATION: " + text : text;
+  if (!publisher_->Publish(d))
+    Log(Priority::kWarning, "diagnostic not published: %s", publisher_->last_error().c_str());
+}
+
 std::string Pipeline::StatusLineLocked() const {
   // The memory budget, for operators (lcm-spy, systemctl status): heap allocations above 0
   // mean memory.arena_mib is too small.
@@ -488,11 +636,15 @@ std::string Pipeline::StatusLineLocked() const {
     std::snprintf(budget, sizeof(budget), "; memory %.0f of %zu MiB, %ld from the heap",
                   static_cast<double>(memory.arena_live_bytes) / (1 << 20),
                   memory.arena_bytes >> 20, memory.heap_allocations);
-  char line[480];
+  const io::saw::DaemonState state = state_.load();
+  char line[960];
   std::snprintf(line, sizeof(line),
-                "%s; jobs accepted %ld, rejected %ld, unconfirmed %ld, refused %ld%s; last %s: "
-                "%s%s%s",
-                busy_.load() ? "morphing" : "waiting for a carcass", verdicts_.accepted,
+                "%s%s%s; %s; jobs accepted %ld, rejected %ld, unconfirmed %ld, refused %ld%s; "
+                "last %s: %s%s%s",
+                LogSimulation() ? "SIMULATION; " : "", StateName(state),
+                state == io::saw::DaemonState::kFault || busy_.load() ? ""
+                                                                      : ", waiting for a carcass",
+                CameraSummaryLocked().c_str(), verdicts_.accepted,
                 verdicts_.rejected, verdicts_.unconfirmed, verdicts_.refused, budget,
                 last_.carcass_id.empty() ? "-" : last_.carcass_id.c_str(),
                 last_.carcass_id.empty() ? "-" : ToString(last_.verdict),

@@ -68,7 +68,13 @@ class Pipeline {
 
   /// Jobs finished so far (for the daemon's log and tests); each is reported once.
   std::vector<JobReport> TakeReports();
+  /// One line for systemctl status and VB_STATUS: [SIMULATION; ]state; cameras (which are
+  /// not ok and why); job counters; memory; the last job.
   std::string StatusLine() const;
+  /// "cameras 3 of 4 ok (cam0 missing: cannot open the device)".
+  std::string CameraSummary() const;
+  /// True once no camera is still opening (each has delivered a frame or been found missing).
+  bool CamerasSettled() const;
   VerdictCounts verdicts() const;
   /// Warnings from start-up (job state file), for the daemon's log.
   const std::string& start_warning() const { return start_warning_; }
@@ -86,6 +92,9 @@ class Pipeline {
   void Dump(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
             const morph::CarcassResult& result) const;
   std::string StatusLineLocked() const;
+  std::string CameraSummaryLocked() const;
+  // One event on VB_DIAGNOSTICS (level: vbutcher::diagnostic_t::INFO, WARNING or ERROR).
+  void Diagnose(std::int8_t level, const std::string& source, const std::string& text);
 
   DaemonConfig config_;
   morph::TemplateArtifact artifact_;
@@ -119,6 +128,8 @@ class Pipeline {
   JobReport last_;
   VerdictCounts verdicts_;
   std::atomic<bool> busy_{false};
+  std::atomic<io::saw::DaemonState> state_{io::saw::DaemonState::kReady};  // as of the last Tick
+  std::string version_;  // "0.1.0 (git revision)", in VB_STATUS
 
   std::uint32_t uptime_ms_ = 0;
   std::chrono::steady_clock::time_point next_status_{};

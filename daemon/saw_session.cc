@@ -4,6 +4,8 @@
 #include <array>
 #include <cstdio>
 
+#include "daemon/log.h"
+
 namespace vb::daemon {
 namespace {
 
@@ -94,8 +96,8 @@ JobOutcome SawSession::SendJob(const io::saw::Job& job) {
       if (!link_->Send(frames[static_cast<std::size_t>(i)], deadline)) {
         // The rest is not sent either: the saw rejects the incomplete job (its deadline), and
         // its answer still comes back below.
-        std::fprintf(stderr,
-                     "<4>virtualbutcherd: saw link: frame %d of %d of carcass %u missed its "
+        Log(Priority::kWarning,
+                     "saw link: frame %d of %d of carcass %u missed its "
                      "%d ms deadline (%s)\n",
                      i + 1, count, job.carcass_id, options_.send_deadline_ms,
                      link_->state().c_str());
@@ -152,8 +154,8 @@ void SawSession::Handle(const io::saw::Frame& frame) {
   io::saw::Ack ack;
   if (!AnswerIntact(frame) || !io::saw::Decode(frame, &ack)) {
     ++counters_.answers_bad;
-    std::fprintf(stderr,
-                 "<4>virtualbutcherd: saw link: ignored a frame 0x%03X from the saw that fails "
+    Log(Priority::kWarning,
+                 "saw link: ignored a frame 0x%03X from the saw that fails "
                  "its E2E check\n",
                  frame.id);
     return;
@@ -170,8 +172,8 @@ void SawSession::Handle(const io::saw::Frame& frame) {
   if (matches(unconfirmed_)) {
     ++counters_.answers_late;
     unconfirmed_.active = false;
-    std::fprintf(stderr,
-                 "<4>virtualbutcherd: saw link: late answer for carcass %u (job %u), already "
+    Log(Priority::kWarning,
+                 "saw link: late answer for carcass %u (job %u), already "
                  "reported unconfirmed: the saw says %s (%s)\n",
                  ack.carcass_id, ack.job_sequence,
                  ack.status == io::saw::AckStatus::kAccepted ? "accepted" : "rejected",
@@ -180,12 +182,12 @@ void SawSession::Handle(const io::saw::Frame& frame) {
   }
   ++counters_.answers_unmatched;
   if (ack.status == io::saw::AckStatus::kSafeStop && ack.carcass_id == 0) {
-    std::fprintf(stderr, "<4>virtualbutcherd: saw link: the saw entered safe stop (%s)\n",
+    Log(Priority::kWarning, "saw link: the saw entered safe stop (%s)\n",
                  std::string(io::saw::ToString(ack.reason)).c_str());
     return;
   }
-  std::fprintf(stderr,
-               "<4>virtualbutcherd: saw link: answer for carcass %u (job %u) that no job awaits\n",
+  Log(Priority::kWarning,
+               "saw link: answer for carcass %u (job %u) that no job awaits\n",
                ack.carcass_id, ack.job_sequence);
 }
 

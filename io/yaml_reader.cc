@@ -1,9 +1,42 @@
 #include "io/yaml_reader.h"
 
 #include <cmath>
+#include <map>
 #include <sstream>
+#include <vector>
 
 namespace vb::io {
+namespace {
+
+// Every mapping key that appears twice in one mapping, as "file:L2: KEY: repeats the key on
+// line L1". yaml-cpp keeps both entries and a lookup returns the first, so a stricter value
+// appended at the end of a file would be ignored without this check.
+void FindRepeatedKeys(const YAML::Node& node, const std::string& source, const std::string& key,
+                      int depth, std::vector<std::string>* found) {
+  if (depth > 64 || found->size() >= 20) return;  // bounded on hostile nesting
+  if (node.IsSequence()) {
+    for (std::size_t i = 0; i < node.size(); ++i)
+      FindRepeatedKeys(node[i], source, key + "[" + std::to_string(i) + "]", depth + 1, found);
+    return;
+  }
+  if (!node.IsMap()) return;
+  std::map<std::string, int> lines;
+  for (const auto& entry : node) {
+    if (!entry.first.IsScalar()) continue;
+    const std::string name = entry.first.Scalar();
+    const std::string path = key.empty() ? name : key + "." + name;
+    const int line = entry.first.Mark().line + 1;
+    const auto [first, inserted] = lines.emplace(name, line);
+    if (!inserted) {
+      found->push_back(source + ":" + std::to_string(line) + ": " + path +
+                       ": repeats the key on line " + std::to_string(first->second) +
+                       " (which one is meant? remove one)");
+    }
+    FindRepeatedKeys(entry.second, source, path, depth + 1, found);
+  }
+}
+
+}  // namespace
 
 YAML::Node YamlReader::LoadFile(const std::filesystem::path& path, const std::string& what) {
   const std::string source = path.string();
@@ -16,6 +49,13 @@ YAML::Node YamlReader::LoadFile(const std::filesystem::path& path, const std::st
     throw InputError(source + ":" + std::to_string(e.mark.line + 1) + ": not valid YAML: " + e.msg);
   }
   if (!root.IsMap()) throw InputError(source + ": expected a YAML mapping at the top level");
+  std::vector<std::string> repeated;
+  FindRepeatedKeys(root, source, "", 0, &repeated);
+  if (!repeated.empty()) {
+    std::string all;
+    for (const std::string& r : repeated) all += (all.empty() ? "" : "\n") + r;
+    throw InputError(all);
+  }
   return root;
 }
 

@@ -19,7 +19,8 @@ class YamlReader {
   explicit YamlReader(std::string source) : source_(std::move(source)) {}
 
   /// Parses @p path; @p what names the kind of file in the message ("annotation file").
-  /// @throws InputError when the file cannot be opened or is not valid YAML.
+  /// @throws InputError when the file cannot be opened, is not valid YAML, or repeats a key
+  ///   within one mapping (each repetition named with both lines, one per line).
   static YAML::Node LoadFile(const std::filesystem::path& path, const std::string& what);
 
   [[noreturn]] void Fail(const YAML::Node& node, const std::string& key,

@@ -140,6 +140,8 @@ TemplateArtifact LoadTemplateArtifact(const std::filesystem::path& path) {
   if (nv < 4 || m.mesh.num_faces() < 4) r.Fail("mesh.V", "too small to be a template");
   if (!m.mesh.V.allFinite() || !m.mesh.N.allFinite()) r.Fail("mesh.V", "has non-finite values");
   if (m.mesh.N.cols() != nv) r.Fail("mesh.N", "does not have one normal per vertex");
+  if (((m.mesh.N.colwise().norm().array() - 1.0).abs() > 1e-3).any())
+    r.Fail("mesh.N", "has a normal that is not unit length");
   CheckIndices(r, "mesh.F", m.mesh.F.reshaped(), nv);
   const Eigen::MatrixXd frame = r.Doubles("frame", 4);
   if (frame.cols() != 1 || !frame.allFinite() || !(frame(3, 0) > 0))
@@ -151,6 +153,7 @@ TemplateArtifact LoadTemplateArtifact(const std::filesystem::path& path) {
   m.skeleton.nodes = r.Doubles("skeleton.nodes", 3);
   m.skeleton.edges = ToPairs(r.Ints("skeleton.edges", 2));
   m.skeleton.support = r.Jagged("skeleton.support");
+  if (!m.skeleton.nodes.allFinite()) r.Fail("skeleton.nodes", "has non-finite values");
   const int ns = m.skeleton.num_nodes();
   CheckIndices(r, "skeleton.edges", r.Ints("skeleton.edges", 2).reshaped(), ns);
   CheckJagged(r, "skeleton.support", m.skeleton.support, static_cast<std::size_t>(ns), nv);
@@ -158,6 +161,8 @@ TemplateArtifact LoadTemplateArtifact(const std::filesystem::path& path) {
   m.features.junctions = r.Doubles("features.junctions", 3);
   m.features.terminal_support = r.Jagged("features.terminal_support");
   m.features.junction_support = r.Jagged("features.junction_support");
+  if (!m.features.terminals.allFinite()) r.Fail("features.terminals", "has non-finite values");
+  if (!m.features.junctions.allFinite()) r.Fail("features.junctions", "has non-finite values");
   CheckJagged(r, "features.terminal_support", m.features.terminal_support,
               static_cast<std::size_t>(m.features.num_terminals()), nv);
   CheckJagged(r, "features.junction_support", m.features.junction_support,

@@ -233,6 +233,11 @@ void RigCapture::Close(Camera* cam) {
 
 void RigCapture::UpdateHealth(Camera* cam, std::int64_t now) {
   CameraStatus& s = cam->status;
+  // No frame for two seconds: the rate is 0, and it is measured afresh from the next frame.
+  if (s.last_frame_ns == 0 || now - s.last_frame_ns > 2000000000) {
+    s.fps = 0;
+    s.fps_window_start_ns = 0;
+  }
   const std::int64_t period_ns = 1000000000 / std::max(1, options_.fps);
   const std::int64_t frozen_limit = options_.frozen_periods * period_ns;
   const std::int64_t silence_limit =
@@ -308,6 +313,20 @@ void RigCapture::Read(Camera* cam) {
   s.low_valid_run = s.valid_ratio < options_.min_valid_ratio ? s.low_valid_run + 1 : 0;
   cam->last_frame_ns = now;
   cam->frame_since_start = true;
+  s.last_frame_ns = now;
+  // The measured rate: frames over windows of at least a second.
+  if (s.fps_window_start_ns == 0) {
+    s.fps_window_start_ns = now;
+    s.fps_window_frames = 0;
+  } else {
+    ++s.fps_window_frames;
+    const std::int64_t window_ns = now - s.fps_window_start_ns;
+    if (window_ns >= 1000000000) {
+      s.fps = s.fps_window_frames * 1e9 / static_cast<double>(window_ns);
+      s.fps_window_start_ns = now;
+      s.fps_window_frames = 0;
+    }
+  }
 }
 
 int RigCapture::Poll() {

@@ -56,6 +56,10 @@ struct CameraStatus {
   CameraHealth health = CameraHealth::kStarting;
   std::int64_t health_since_ns = 0;  ///< CLOCK_MONOTONIC of the last health change
   std::uint64_t frames = 0;
+  std::int64_t last_frame_ns = 0;  ///< CLOCK_MONOTONIC when the newest frame arrived; 0: none
+  double fps = 0;                  ///< frames per second measured over about the last second
+  std::int64_t fps_window_start_ns = 0;
+  int fps_window_frames = 0;
   int identical_run = 0;  ///< consecutive frames equal to the one before
   int low_valid_run = 0;
   double valid_ratio = 0;

@@ -59,26 +59,89 @@ vbutcher::cut_lines_t ReadCuts(const std::filesystem::path& path) {
   }
 }
 
-struct CutLinesCounter {
-  void On(const lcm::ReceiveBuffer*, const std::string& channel, const vbutcher::cut_lines_t* m) {
-    const std::string problem = io::ValidateCutLines(*m);
+// Every message on the daemon's channels, decoded here (not by LCM's typed subscription), so a
+// malformed one is counted and reported instead of ending the program: LCM 1.3.1's generated
+// decoders throw (std::length_error, std::bad_alloc) on a negative or huge array length.
+struct Listener {
+  const LcmListenOptions* options;
+  int received = 0, invalid = 0, out_of_order = 0, malformed = 0, statuses = 0, diagnostics = 0;
+  std::int64_t last_sequence = 0;
+
+  template <typename Message>
+  bool Decode(const lcm::ReceiveBuffer* buffer, const std::string& channel, Message* m) {
+    int used = -1;
+    try {
+      used = m->decode(buffer->data, 0, static_cast<int>(buffer->data_size));
+    } catch (const std::exception& e) {
+      std::printf("lcm-listen: %s: malformed message of %u bytes (%s); ignored\n",
+                  channel.c_str(), buffer->data_size, e.what());
+      ++malformed;
+      return false;
+    }
+    if (used < 0) {
+      std::printf("lcm-listen: %s: malformed message of %u bytes; ignored\n", channel.c_str(),
+                  buffer->data_size);
+      ++malformed;
+      return false;
+    }
+    return true;
+  }
+
+  void OnCutLines(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
+    vbutcher::cut_lines_t m;
+    if (!Decode(buffer, channel, &m)) return;
+    const std::string problem = io::ValidateCutLines(m);
     if (!problem.empty()) {
       std::printf("lcm-listen: %s: invalid message: %s\n", channel.c_str(), problem.c_str());
       ++invalid;
       return;
     }
-    if (m->sequence <= last_sequence) ++out_of_order;
-    last_sequence = m->sequence;
+    if (m.sequence <= last_sequence) ++out_of_order;
+    last_sequence = m.sequence;
     ++received;
     static const char* kVerdicts[] = {"accepted", "rejected", "unconfirmed", "refused"};
-    const char* verdict = m->saw_verdict >= 0 && m->saw_verdict < 4 ? kVerdicts[m->saw_verdict]
-                                                                     : "unknown verdict";
+    const char* verdict = m.saw_verdict >= 0 && m.saw_verdict < 4 ? kVerdicts[m.saw_verdict]
+                                                                   : "unknown verdict";
     std::printf("lcm-listen: %s seq %lld carcass %s: %d cuts, %d parts, saw verdict %s: %s\n",
-                channel.c_str(), static_cast<long long>(m->sequence), m->carcass_id.c_str(),
-                m->num_cuts, m->num_parts, verdict, m->status.c_str());
+                channel.c_str(), static_cast<long long>(m.sequence), m.carcass_id.c_str(),
+                m.num_cuts, m.num_parts, verdict, m.status.c_str());
   }
-  int received = 0, invalid = 0, out_of_order = 0;
-  std::int64_t last_sequence = 0;
+
+  void OnStatus(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
+    vbutcher::status_t m;
+    if (!Decode(buffer, channel, &m)) return;
+    ++statuses;
+    if (!options->print_status) return;
+    static const char* kStates[] = {"STARTING", "READY", "BUSY", "DEGRADED", "FAULT"};
+    static const char* kHealth[] = {"OK",        "FROZEN",     "MISSING",
+                                    "LOW_VALID", "RECOVERING", "STARTING"};
+    std::printf("lcm-listen: %s seq %lld state %s version %s: %s\n", channel.c_str(),
+                static_cast<long long>(m.sequence),
+                m.state >= 0 && m.state < 5 ? kStates[m.state] : "unknown", m.version.c_str(),
+                m.state_text.c_str());
+    const std::int64_t now = NowMicros();
+    for (const vbutcher::camera_health_t& c : m.cameras) {
+      std::printf("lcm-listen:   camera %s serial %s state %s fps %.1f valid %.2f last frame %s\n",
+                  c.name.c_str(), c.serial.c_str(),
+                  c.state >= 0 && c.state < 6 ? kHealth[c.state] : "unknown", c.fps,
+                  c.valid_ratio,
+                  c.last_frame_utime == 0
+                      ? "never"
+                      : (std::to_string((now - c.last_frame_utime) / 1000) + " ms ago").c_str());
+    }
+  }
+
+  void OnDiagnostic(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
+    vbutcher::diagnostic_t m;
+    if (!Decode(buffer, channel, &m)) return;
+    ++diagnostics;
+    if (!options->print_diagnostics) return;
+    static const char* kLevels[] = {"INFO", "WARNING", "ERROR"};
+    std::printf("lcm-listen: %s seq %lld %s %s: %s\n", channel.c_str(),
+                static_cast<long long>(m.sequence),
+                m.level >= 0 && m.level < 3 ? kLevels[m.level] : "unknown", m.source.c_str(),
+                m.message.c_str());
+  }
 };
 
 }  // namespace
@@ -116,18 +179,28 @@ int RunLcmPublish(const LcmPublishOptions& options) {
 int RunLcmListen(const LcmListenOptions& options) {
   lcm::LCM lcm(options.url);
   if (!lcm.good()) throw InputError("LCM URL '" + options.url + "': LCM could not start on it");
-  CutLinesCounter counter;
-  lcm.subscribe("VB_CUT_LINES", &CutLinesCounter::On, &counter);
+  Listener listener{&options};
+  lcm.subscribe(options.channels.cut_lines, &Listener::OnCutLines, &listener);
+  lcm.subscribe(options.channels.status, &Listener::OnStatus, &listener);
+  lcm.subscribe(options.channels.diagnostics, &Listener::OnDiagnostic, &listener);
   const auto deadline =
       std::chrono::steady_clock::now() + std::chrono::duration<double>(options.timeout_s);
-  while (counter.received < options.count && std::chrono::steady_clock::now() < deadline) {
+  auto done = [&] {
+    return listener.received >= options.count && listener.statuses >= options.status_count &&
+           listener.diagnostics >= options.diagnostic_count;
+  };
+  while (!done() && std::chrono::steady_clock::now() < deadline) {
     lcm.handleTimeout(50);
     std::fflush(stdout);
   }
-  std::printf("lcm-listen summary: received %d invalid %d out_of_order %d\n", counter.received,
-              counter.invalid, counter.out_of_order);
-  return counter.received >= options.count && counter.invalid == 0 && counter.out_of_order == 0 ? 0
-                                                                                                : 3;
+  std::printf(
+      "lcm-listen summary: received %d invalid %d out_of_order %d malformed %d status %d "
+      "diagnostics %d\n",
+      listener.received, listener.invalid, listener.out_of_order, listener.malformed,
+      listener.statuses, listener.diagnostics);
+  return done() && listener.invalid == 0 && listener.out_of_order == 0 && listener.malformed == 0
+             ? 0
+             : 3;
 }
 
 }  // namespace vb::tools

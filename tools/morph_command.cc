@@ -30,6 +30,8 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   const bool has_annotations = !options.annotations_path.empty() || !options.model_path.empty();
   if (!options.cuts_path.empty() && !has_annotations)
     throw InputError("morph: --cuts needs --annotations (or a --model, which holds them)");
+  if (!options.cuts_path.empty() && options.stage != "full")
+    throw InputError("morph: --cuts needs --stage full (cuts come from the dense stage)");
   if (!options.annotations_path.empty() && options.stage != "full")
     throw InputError("morph: --annotations needs --stage full (cuts come from the dense stage)");
   morph::MorphOptions morph_options;

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "io/error.h"
+#include "io/version.h"
 #include "perception/synthetic_set.h"
 #include "tools/bench_command.h"
 #include "tools/bench_shapes.h"
@@ -17,6 +18,13 @@
 int main(int argc, char** argv) {
   CLI::App app{"VirtualButcher command-line tool"};
   app.require_subcommand(1);
+  app.set_version_flag("--version",
+                       std::string("vbutcher ") + vb::Version() + " (" + vb::GitRevision() + ")");
+  app.footer(
+      "Exit status: 0 done; 1 failed at run time (a device, a socket, a file that cannot be "
+      "written); 2 the command line or an input file is wrong (the message names it); 3 the "
+      "work did not succeed (capture: no frame set; morph: the target could not be morphed; "
+      "lcm-listen: messages missing, invalid or malformed).");
 
   vb::perception::SyntheticSetOptions synth;
   CLI::App* synth_cmd = app.add_subcommand("synth",
@@ -286,15 +294,36 @@ int main(int argc, char** argv) {
       ->capture_default_str();
 
   vb::tools::LcmListenOptions lcm_listen;
-  CLI::App* lcm_listen_cmd =
-      app.add_subcommand("lcm-listen", "Receive and check cut-lines messages on LCM");
+  CLI::App* lcm_listen_cmd = app.add_subcommand(
+      "lcm-listen", "Receive and check the daemon's cut lines, status and diagnostics on LCM");
   lcm_listen_cmd->add_option("--url", lcm_listen.url, "LCM URL")->capture_default_str();
-  lcm_listen_cmd->add_option("--count", lcm_listen.count, "Messages to wait for")
+  lcm_listen_cmd->add_option("--count", lcm_listen.count, "Cut-lines messages to wait for")
       ->capture_default_str();
+  lcm_listen_cmd->add_option("--status-count", lcm_listen.status_count,
+                             "Status messages to wait for")
+      ->capture_default_str();
+  lcm_listen_cmd->add_option("--diagnostic-count", lcm_listen.diagnostic_count,
+                             "Diagnostics to wait for")
+      ->capture_default_str();
+  lcm_listen_cmd->add_flag("--status", lcm_listen.print_status,
+                           "Print each status message (VB_STATUS) with its cameras");
+  lcm_listen_cmd->add_flag("--diagnostics", lcm_listen.print_diagnostics,
+                           "Print each diagnostic (VB_DIAGNOSTICS)");
   lcm_listen_cmd->add_option("--timeout", lcm_listen.timeout_s, "Seconds to wait")
       ->capture_default_str();
 
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    app.exit(e);  // prints what is wrong
+    return 2;
+  }
   try {
     if (synth_cmd->parsed()) {
       synth.arbitrary_orientation = !upright;

@@ -3,6 +3,9 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
 #include <fstream>
 #include <sstream>
 
@@ -17,7 +20,9 @@ using ::testing::HasSubstr;
 class DaemonConfigTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    perception::SaveRigCalibration(dir_ / "rig.yaml", perception::MakeRingRig({}));
+    perception::RingRigOptions real_cameras;  // found by serial: no virtual URIs
+    real_cameras.uri_scheme = "";
+    perception::SaveRigCalibration(dir_ / "rig.yaml", perception::MakeRingRig(real_cameras));
     dir_.Write("lamb.vbt", "a compiled template");
   }
   std::string Error(const std::string& body) {
@@ -96,9 +101,6 @@ TEST_F(DaemonConfigTest, ReadsTheSawLinkAndJobNumberingKeys) {
   EXPECT_EQ(c.job.new_carcass_change, 0.5);
   EXPECT_THAT(Error("can: {answer_timeout_ms: 0}\n"),
               HasSubstr("can.answer_timeout_ms: value 0 is outside [10, 5000]"));
-  EXPECT_THAT(Error("job: {state_file: nowhere/job-state}\n"),
-              HasSubstr("job.state_file: no folder"));
-  EXPECT_THAT(Error("can: {record: nowhere/frames.log}\n"), HasSubstr("can.record: no folder"));
   EXPECT_THAT(Error("job: {morph_deadline_ms: 10}\n"),
               HasSubstr("job.morph_deadline_ms: value 10 is outside [50, 600000]"));
   EXPECT_THAT(Error("can: {interface: \"unix:/" + std::string(120, 'x') + "\"}\n"),
@@ -138,25 +140,128 @@ TEST_F(DaemonConfigTest, NamesFileLineKeyAndValue) {
   }
 }
 
-TEST(DaemonConfigShippedTest, TheShippedExampleIsValidOnceItsFilesExist) {
-  // config/virtualbutcherd.yaml names installed paths; here only its syntax and keys are
-  // checked, against a copy whose paths point at files that exist.
+TEST_F(DaemonConfigTest, ListsEveryProblemOfTheFileInOnePass) {
+  const std::string all = Error(
+      "capture: {fps: 500, frozen_periods: 1}\n"
+      "fusion: {voxel_m: fine}\n"
+      "job: {min_confidence: 2}\n"
+      "lcm: {url: \"udpm://10.0.0.1:7667\"}\n"
+      "colour: red\n");
+  EXPECT_THAT(all, HasSubstr("vbd.yaml:5: capture.fps: value 500 is outside [1, 120]"));
+  EXPECT_THAT(all, HasSubstr("vbd.yaml:5: capture.frozen_periods: value 1 is outside"));
+  EXPECT_THAT(all, HasSubstr("vbd.yaml:6: fusion.voxel_m: cannot read 'fine'"));
+  EXPECT_THAT(all, HasSubstr("vbd.yaml:7: job.min_confidence: value 2 is outside [0, 1]"));
+  EXPECT_THAT(all, HasSubstr("lcm.url: 'udpm://10.0.0.1:7667': 10.0.0.1 is not a multicast"));
+  EXPECT_THAT(all, HasSubstr("vbd.yaml:9: colour: unknown key"));
+  EXPECT_EQ(std::count(all.begin(), all.end(), '\n'), 5);  // six problems, one per line
+}
+
+TEST_F(DaemonConfigTest, RefusesARepeatedKeySoAnAppendedStricterValueCannotBeIgnored) {
+  const std::string e =
+      Error("job:\n  min_confidence: 0.6\nmemory: {arena_mib: 512}\njob:\n  min_confidence: 0.9\n");
+  EXPECT_THAT(e, HasSubstr("vbd.yaml:8: job: repeats the key on line 5"));
+  EXPECT_THAT(Error("job: {min_confidence: 0.6, min_confidence: 0.9}\n"),
+              HasSubstr("vbd.yaml:5: job.min_confidence: repeats the key on line 5"));
+}
+
+TEST_F(DaemonConfigTest, RefusesVirtualCamerasOnARealCanInterfaceUnlessSimulation) {
+  perception::SaveRigCalibration(dir_ / "vrig.yaml", perception::MakeRingRig({}));  // vbrig://
+  dir_.Write("scene.yaml", "any");
+  auto load = [&](const std::string& body) {
+    return LoadDaemonConfig(dir_.Write("sim.yaml", "format: virtualbutcherd-config\nversion: 1\n"
+                                                   "template: lamb.vbt\n" + body));
+  };
+  auto error = [&](const std::string& body) {
+    try {
+      load(body);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(accepted)");
+  };
+  EXPECT_THAT(error("rig: vrig.yaml\ncan: {interface: can0}\n"),
+              HasSubstr("sim.yaml:5: can.interface: 'can0' is a real CAN interface, and the "
+                        "cameras are virtual (the rig's URIs)"));
+  EXPECT_THAT(error("rig: rig.yaml\nvirtual_scene: scene.yaml\ncan: {interface: vcan0}\n"),
+              HasSubstr("cameras are virtual (virtual_scene)"));
+  // Allowed: real cameras on CAN, virtual cameras on the in-process or socket saw, and
+  // virtual cameras on CAN when the file says it is a simulation.
+  EXPECT_FALSE(load("rig: rig.yaml\ncan: {interface: can0}\n").simulation);
+  EXPECT_FALSE(UsesVirtualCameras(load("rig: rig.yaml\ncan: {interface: can0}\n")));
+  EXPECT_NO_THROW(load("rig: vrig.yaml\ncan: {interface: loopback}\n"));
+  EXPECT_NO_THROW(load("rig: vrig.yaml\ncan: {interface: \"unix:/tmp/saw.sock\"}\n"));
+  EXPECT_TRUE(load("rig: vrig.yaml\nsimulation: true\ncan: {interface: can0}\n").simulation);
+}
+
+TEST(DaemonConfigLcmUrlTest, AcceptsWhatLcmPublishesOnAndNamesWhatIsWrong) {
+  EXPECT_EQ(CheckLcmUrl("memq://"), "");
+  EXPECT_EQ(CheckLcmUrl("udpm://239.255.76.67:7667?ttl=0"), "");
+  EXPECT_EQ(CheckLcmUrl("udpm://224.0.0.1:1?ttl=255&recv_buf_size=2097152"), "");
+  EXPECT_THAT(CheckLcmUrl("udpm://239.255.76.67"), HasSubstr("expected udpm://ADDRESS:PORT"));
+  EXPECT_THAT(CheckLcmUrl("udpm://239.255.76:7667"), HasSubstr("is not an IPv4 address"));
+  EXPECT_THAT(CheckLcmUrl("udpm://192.168.1.2:7667"), HasSubstr("is not a multicast address"));
+  EXPECT_THAT(CheckLcmUrl("udpm://239.1.1.1:70000"), HasSubstr("port '70000' is not in"));
+  EXPECT_THAT(CheckLcmUrl("udpm://239.1.1.1:x?ttl=0"), HasSubstr("port 'x' is not in"));
+  EXPECT_THAT(CheckLcmUrl("udpm://239.1.1.1:7667?ttl=256"), HasSubstr("ttl '256' is not in"));
+  EXPECT_THAT(CheckLcmUrl("udpm://239.1.1.1:7667?tll=1"), HasSubstr("unknown option 'tll'"));
+  EXPECT_THAT(CheckLcmUrl("tcpq://x"), HasSubstr("is neither udpm:// nor memq://"));
+}
+
+TEST_F(DaemonConfigTest, ChecksWhatThisMachineMustOfferBeforeStart) {
+  auto problems = [&](const std::string& body, std::vector<std::string>* warnings = nullptr) {
+    const DaemonConfig c = LoadDaemonConfig(dir_.Write("vbd.yaml", kHead + body));
+    std::string all;
+    for (const std::string& p : CheckMachine(c, warnings)) all += p + "\n";
+    return all;
+  };
+  EXPECT_EQ(problems("can: {interface: loopback}\n"), "");
+  EXPECT_THAT(problems("can: {interface: nosuch0}\n"),
+              HasSubstr("vbd.yaml: can.interface: 'nosuch0': no such network interface"));
+  // Every Linux machine has lo; it is not a CAN interface (ARPHRD_LOOPBACK, 772).
+  EXPECT_THAT(problems("can: {interface: lo}\n"),
+              HasSubstr("can.interface: 'lo' is not a CAN interface (link type 772"));
+  EXPECT_THAT(problems("can: {interface: \"unix:/nowhere/saw.sock\"}\n"),
+              HasSubstr("can.interface: no folder /nowhere"));
+  EXPECT_THAT(problems("can: {interface: loopback, record: nowhere/frames.log}\n"),
+              HasSubstr("can.record: no folder"));
+  EXPECT_THAT(problems("can: {interface: loopback}\njob: {dump_dir: nowhere}\n"),
+              HasSubstr("job.dump_dir: no folder"));
+  EXPECT_EQ(problems("can: {interface: loopback, record: \"\"}\njob: {dump_dir: \"\"}\n"), "");
+  std::vector<std::string> warnings;
+  EXPECT_EQ(problems("can: {interface: loopback}\njob: {state_file: nowhere/job-state}\n",
+                     &warnings),
+            "");
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_THAT(warnings[0], HasSubstr("job.state_file: no folder"));
+}
+
+TEST(DaemonConfigShippedTest, TheShippedFileListsEveryKeyAndLoadsBesideItsRig) {
+  // config/virtualbutcherd.yaml as shipped, beside the shipped rig.yaml, with a template of
+  // that name: it loads (the HIL test runs --check-config on it unchanged, with can0).
   test::TempDir dir;
-  perception::SaveRigCalibration(dir / "rig.yaml", perception::MakeRingRig({}));
+  std::filesystem::copy_file(VB_SOURCE_DIR "/config/virtualbutcherd.yaml", dir / "vbd.yaml");
+  std::filesystem::copy_file(VB_SOURCE_DIR "/config/rig.yaml", dir / "rig.yaml");
   dir.Write("lamb.vbt", "x");
-  std::ifstream in(VB_SOURCE_DIR "/config/virtualbutcherd.yaml");
-  ASSERT_TRUE(in.good());
-  std::stringstream text;
-  text << in.rdbuf();
-  std::string s = text.str();
-  s.replace(s.find("/usr/share/virtualbutcher/lamb.vbt"), 34, "lamb.vbt");
-  s.replace(s.find("/etc/virtualbutcher/rig.yaml"), 28, "rig.yaml");
-  s.replace(s.find("/var/lib/virtualbutcher/job-state"), 33, "job-state");
-  const DaemonConfig c = LoadDaemonConfig(dir.Write("vbd.yaml", s));
+  const DaemonConfig c = LoadDaemonConfig(dir / "vbd.yaml");
+  EXPECT_EQ(c.template_path, dir / "lamb.vbt");
   EXPECT_EQ(c.can.interface, "can0");
   EXPECT_EQ(c.can.answer_timeout_ms, 250);
-  EXPECT_EQ(c.job.state_file, dir / "job-state");
+  EXPECT_TRUE(c.can.record.empty());
+  EXPECT_TRUE(c.job.dump_dir.empty());
+  EXPECT_FALSE(c.simulation);
+  EXPECT_FALSE(UsesVirtualCameras(c));
   EXPECT_TRUE(c.morph.upright.enabled);
+  // Every key the loader knows is written out (virtual_scene as a comment: it is a choice,
+  // not a default).
+  const YAML::Node root = YAML::LoadFile((dir / "vbd.yaml").string());
+  for (const std::string& key : DaemonConfigKeys()) {
+    if (key == "virtual_scene") continue;
+    const std::size_t dot = key.find('.');
+    const bool present = dot == std::string::npos
+                             ? static_cast<bool>(root[key])
+                             : static_cast<bool>(root[key.substr(0, dot)][key.substr(dot + 1)]);
+    EXPECT_TRUE(present) << key << " is not in config/virtualbutcherd.yaml";
+  }
 }
 
 }  // namespace

@@ -41,7 +41,7 @@ if [ -x "$vbd" ]; then
   "$vbutcher" virtual-rig --out "$d/rig" --cameras 1 --fps 5 >/dev/null
   sed -i '/^carcass:/d' "$d/rig/scene.yaml"
   printf '%s\n' "format: virtualbutcherd-config" "version: 1" "template: lamb.vbt" \
-    "rig: rig/rig.yaml" "virtual_scene: rig/scene.yaml" "capture: {fps: 5}" \
+    "rig: rig/rig.yaml" "virtual_scene: rig/scene.yaml" "simulation: true" "capture: {fps: 5}" \
     'lcm: {url: "memq://"}' "can: {interface: vcan0}" >"$d/vbd.yaml"
   vbd_config="$d/vbd.yaml"
   # Part E: the daemon's own frames. A morph under the VM's software emulation would be far
@@ -122,6 +122,12 @@ stop_after_kill B "the sender"
 if [ -n "$vbd_config" ]; then
   grep -aq "HIL D .*safe stop left" "$log" || fail "D: the daemon's heartbeat never took the saw out of safe stop"
   stop_after_kill D virtualbutcherd
+  # F: the shipped configuration, as the checkout has it, passes --check-config on a machine
+  # with can0 (here a vcan), and the same configuration with virtual cameras is refused.
+  grep -aq "HIL F shipped config check rc 0" "$log" ||
+    fail "F: the shipped configuration does not pass --check-config with can0 present: $(grep -a 'HIL F' "$log" | tr -d '\r' | head -5)"
+  grep -aq "HIL F virtual scene on can0 rc 2" "$log" ||
+    fail "F: virtual cameras on can0 without simulation: true were not refused"
 fi
 if [ -n "${frames_log:-}" ]; then
   e=$(line "HIL E saw-sim summary")

@@ -101,6 +101,22 @@ if [ -n "$vbd_config" ]; then
   kill -TERM $saw; wait $saw
   grep -E "SAFE STOP|safe stop left" $t/sawD.log | sed 's/^/HIL D /'
 fi
+# F. The shipped configuration (config/ of this checkout) on a machine that has can0; then the
+# same with a virtual scene added, which must be refused (no `simulation: true`).
+if [ -n "$vbd_config" ]; then
+  ip link add dev can0 type vcan && ip link set up can0
+  shipped=$(cd "$(dirname "$0")/../../config" && pwd)/virtualbutcherd.yaml
+  "$vbd" --check-config --config "$shipped" >$t/checkF.log 2>&1
+  echo "HIL F shipped config check rc $?"
+  sed 's/^/HIL F /' $t/checkF.log
+  mkdir -p $t/F
+  cp "$(dirname "$shipped")/rig.yaml" $t/F/
+  sed "s#^template: .*#template: $(dirname "$(dirname "$vbd")")/share/lamb.vbt#; s#^\# virtual_scene: .*#virtual_scene: $(dirname "$vbd_config")/rig/scene.yaml#" \
+    "$shipped" >$t/F/vbd.yaml
+  "$vbd" --check-config --config $t/F/vbd.yaml >$t/checkF2.log 2>&1
+  echo "HIL F virtual scene on can0 rc $?"
+  sed 's/^/HIL F /' $t/checkF2.log
+fi
 # E. The daemon's own frames, recorded on the host, replayed onto vcan0 at their pace.
 if [ -n "$frames_log" ]; then
   "$vb" saw-sim --can vcan0 --quiet >$t/sawE.log &

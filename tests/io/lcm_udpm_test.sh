@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # LCM over real UDP multicast, inside a private network namespace so nothing leaves it:
-# vbutcher lcm-publish -> lcm-logger records; lcm-logplayer replays -> vbutcher lcm-listen.
+# vbutcher lcm-publish -> lcm-logger records; lcm-logplayer replays -> vbutcher lcm-listen;
+# a malformed message (a negative array length, which LCM 1.3.1's decoder throws on) is
+# counted and reported by lcm-listen, which goes on receiving.
 # Usage: lcm_udpm_test.sh <vbutcher> <cuts.json>
 set -euo pipefail
 vbutcher=$1
@@ -36,4 +38,31 @@ sleep 0.5
 lcm-logplayer --lcm-url="$url" "$work/run.lcmlog"
 wait $listener || { echo "FAIL: replay listener:"; cat "$work/replay.txt"; exit 1; }
 grep -q "received $count invalid 0 out_of_order 0" "$work/replay.txt" || { cat "$work/replay.txt"; exit 1; }
-echo "ok: $count cut-lines messages over udpm live and replayed from lcm-logger's log"
+
+# 3. A malformed cut-lines message, sent as raw LCM over UDP (magic "LC02", sequence,
+# channel, then the payload lcm-gen's Python type encodes with num_cuts = -1), between
+# good ones (from two publishers, so one sequence number starts again).
+types=$(dirname "$(dirname "$(realpath "$vbutcher")")")/io/lcmtypes/python
+"$vbutcher" lcm-listen --url "$url" --count 3 --timeout 20 >"$work/malformed.txt" &
+listener=$!
+sleep 0.5
+"$vbutcher" lcm-publish --url "$url" --cuts "$cuts" --carcass-id before --count 1 >/dev/null
+/usr/bin/python3 - "$types" <<'PY'
+import socket, struct, sys
+sys.path.insert(0, sys.argv[1])
+from vbutcher.cut_lines_t import cut_lines_t
+m = cut_lines_t()
+m.carcass_id, m.template_id, m.status = "bad", "bad", "bad"
+m.num_cuts = -1
+packet = struct.pack(">II", 0x4C433032, 1) + b"VB_CUT_LINES\0" + m.encode()
+s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+s.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, 0)
+s.sendto(packet, ("239.255.76.67", 7667))
+PY
+"$vbutcher" lcm-publish --url "$url" --cuts "$cuts" --carcass-id after --count 2 --period-ms 10 >/dev/null
+rc=0
+wait $listener || rc=$?
+grep -q "VB_CUT_LINES: malformed message of [0-9]* bytes" "$work/malformed.txt" &&
+  grep -q "received 3 invalid 0 out_of_order [01] malformed 1" "$work/malformed.txt" && [ $rc = 3 ] ||
+  { echo "FAIL: malformed message (exit $rc):"; cat "$work/malformed.txt"; exit 1; }
+echo "ok: $count cut-lines messages over udpm live and replayed from lcm-logger's log; a malformed one reported and survived"

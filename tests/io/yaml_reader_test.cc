@@ -48,5 +48,23 @@ TEST(YamlReaderTest, RefusesMissingAndMalformedFiles) {
               HasSubstr("expected a YAML mapping"));
 }
 
+TEST(YamlReaderTest, RefusesARepeatedKeyNamingBothLinesAtAnyDepth) {
+  // yaml-cpp's lookup returns the first of two equal keys: a stricter value appended at the
+  // end would be silently ignored.
+  test::TempDir dir;
+  const auto top = dir.Write("top.yaml", "job:\n  min_confidence: 0.6\nx: 1\njob: {a: 2}\n");
+  EXPECT_EQ(Message([&] { YamlReader::LoadFile(top, "file"); }),
+            (dir / "top.yaml").string() +
+                ":4: job: repeats the key on line 1 (which one is meant? remove one)");
+  const auto deep = dir.Write(
+      "deep.yaml", "cams:\n  - name: a\n    k: {fx: 1, fy: 2, fx: 3}\n  - name: b\n    name: c\n");
+  const std::string message = Message([&] { YamlReader::LoadFile(deep, "file"); });
+  EXPECT_THAT(message, HasSubstr("deep.yaml:3: cams[0].k.fx: repeats the key on line 3"));
+  EXPECT_THAT(message, HasSubstr("\n" + (dir / "deep.yaml").string() +
+                                 ":5: cams[1].name: repeats the key on line 4"));
+  const auto same_name_elsewhere = dir.Write("ok.yaml", "a: {x: 1}\nb: {x: 1}\n");
+  EXPECT_NO_THROW(YamlReader::LoadFile(same_name_elsewhere, "file"));
+}
+
 }  // namespace
 }  // namespace vb::io

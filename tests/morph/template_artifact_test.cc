@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <functional>
+#include <limits>
 #include <sstream>
 
 #include "io/error.h"
@@ -85,6 +87,36 @@ TEST_F(TemplateArtifactTest, RefusesCorruptTruncatedAndForeignFiles) {
   EXPECT_THAT(error("VBARCHV1"), HasSubstr("bad magic"));
   EXPECT_THAT(error(std::string()), HasSubstr("bad magic"));
   EXPECT_THROW(LoadTemplateArtifact(dir / "absent.vbt"), InputError);
+}
+
+TEST_F(TemplateArtifactTest, RefusesAWellFormedFileWithNonFiniteFeaturesOrSkeleton) {
+  // A buggy writer's file passes its checksums; its contents must still be finite, or every
+  // morph would fail on the line although `template info` and --check-config passed.
+  test::TempDir dir;
+  auto error = [&](const std::function<void(TemplateArtifact*)>& spoil) {
+    TemplateArtifact artifact;
+    artifact.template_id = "lamb";
+    artifact.model = *model_;
+    artifact.annotations = carcass_->annotations;
+    spoil(&artifact);
+    SaveTemplateArtifact(dir / "spoilt.vbt", artifact);
+    try {
+      LoadTemplateArtifact(dir / "spoilt.vbt");
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(accepted)");
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THAT(error([&](TemplateArtifact* a) { a->model.features.terminals(1, 0) = nan; }),
+              HasSubstr("spoilt.vbt: section 'features.terminals': has non-finite values"));
+  EXPECT_THAT(error([&](TemplateArtifact* a) { a->model.features.junctions(0, 0) = nan; }),
+              HasSubstr("section 'features.junctions': has non-finite values"));
+  EXPECT_THAT(error([&](TemplateArtifact* a) { a->model.skeleton.nodes(2, 3) = nan; }),
+              HasSubstr("section 'skeleton.nodes': has non-finite values"));
+  EXPECT_THAT(error([&](TemplateArtifact* a) { a->model.mesh.N.col(5) *= 2; }),
+              HasSubstr("section 'mesh.N': has a normal that is not unit length"));
+  EXPECT_EQ(error([](TemplateArtifact*) {}), "(accepted)");
 }
 
 }  // namespace

@@ -92,9 +92,22 @@ TEST_F(BadRigTest, NamesTheKeyAndValue) {
   ExpectRejected("    intrinsics:", "    intrinsicz:", "cameras[0].intrinsics: missing");
 }
 
-TEST(RigCalibrationTest, ShippedExampleLoads) {
-  const RigCalibration rig = LoadRigCalibration(VB_SOURCE_DIR "/config/rig_example.yaml");
-  EXPECT_EQ(rig.cameras.size(), 4u);
+TEST(RigCalibrationTest, ShippedExampleIsARealCameraRigAsTheVirtualRingPlacesIt) {
+  // The package installs it as the plant's rig.yaml: found by serial, no virtual URIs, and
+  // the same nominal poses as the virtual ring the demo runs on (within 1 um, 1e-6 rad).
+  const RigCalibration rig = LoadRigCalibration(VB_SOURCE_DIR "/config/rig.yaml");
+  const RigCalibration ring = MakeRingRig({});
+  ASSERT_EQ(rig.cameras.size(), ring.cameras.size());
+  for (std::size_t c = 0; c < rig.cameras.size(); ++c) {
+    EXPECT_TRUE(rig.cameras[c].uri.empty()) << rig.cameras[c].name;
+    EXPECT_LT((rig.cameras[c].X_RigCam.translation() - ring.cameras[c].X_RigCam.translation())
+                  .norm(),
+              1e-6);
+    EXPECT_LT(Eigen::AngleAxisd(rig.cameras[c].X_RigCam.linear().transpose() *
+                                ring.cameras[c].X_RigCam.linear())
+                  .angle(),
+              1e-6);
+  }
 }
 
 TEST(RigCalibrationTest, RefusesEmptyRigsAndMissingFiles) {

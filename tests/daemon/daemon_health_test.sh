@@ -1,0 +1,117 @@
+#!/usr/bin/env bash
+# What operators see, read where they read it: sd_notify (our own NOTIFY_SOCKET), the log
+# and VB_STATUS / VB_DIAGNOSTICS over udpm in a private network namespace (vbutcher
+# lcm-listen decodes them as lcm-spy would).
+#  1. A camera missing at start: READY=1 comes once the cameras have settled, and STATUS, a
+#     warning in the log, VB_STATUS (DEGRADED, the camera MISSING) and VB_DIAGNOSTICS all
+#     name it; the camera that works reports its measured frame rate and last frame time.
+#  2. All cameras present: STATUS and VB_STATUS say ready; the version in VB_STATUS is the
+#     one --version prints.
+#  3. simulation: true: every log line and the status say SIMULATION.
+# Usage: daemon_health_test.sh <vbutcher> <virtualbutcherd>
+set -euo pipefail
+vbutcher=$(realpath "$1")
+daemon=$(realpath "$2")
+if [ "${VB_IN_NETNS:-}" != 1 ]; then
+  exec unshare -n env VB_IN_NETNS=1 bash "$0" "$@"
+fi
+ip link set lo up multicast on
+ip route add 224.0.0.0/4 dev lo
+url="udpm://239.255.76.67:7667?ttl=0"
+work=$(mktemp -d)
+trap 'kill $(jobs -p) 2>/dev/null || true; rm -rf "$work"' EXIT
+fail() { echo "FAIL: $*"; for f in "$work"/*.log "$work"/*.txt; do echo "--- $f"; cat "$f"; done; exit 1; }
+
+"$vbutcher" synth --out "$work/set" --count 1 >/dev/null
+"$vbutcher" template compile --template "$work/set/template.ply" \
+  --annotations "$work/set/template_annotations.yaml" -o "$work/lamb.vbt" >/dev/null
+"$vbutcher" virtual-rig --out "$work/rig" --cameras 2 >/dev/null
+sed -i '/^carcass:/d' "$work/rig/scene.yaml"  # an empty hook
+sed 's#uri: vbrig://VB0002#uri: vbrig://ABSENT#' "$work/rig/rig.yaml" >"$work/rig/rig_missing.yaml"
+config() {  # config <file> <rig> [extra line]
+  printf '%s\n' "format: virtualbutcherd-config" "version: 1" "template: lamb.vbt" "rig: $2" \
+    "virtual_scene: rig/scene.yaml" "lcm: {url: \"$url\", status_period_ms: 250}" \
+    "can: {interface: loopback}" "job: {state_file: job-state}" ${3:+"$3"} >"$work/$1"
+}
+printf 'vbutcher-job-state 1\ncarcass 0\nsequence 0\n' >"$work/job-state"
+config missing.yaml rig/rig_missing.yaml
+config good.yaml rig/rig.yaml
+config sim.yaml rig/rig.yaml "simulation: true"
+
+notify_listener() {  # notify_listener <socket> <log>
+  /usr/bin/python3 - "$1" "$2" <<'PY' &
+import socket, sys, time
+s = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+s.bind(sys.argv[1])
+s.settimeout(0.5)
+end = time.time() + 30
+with open(sys.argv[2], "w") as log:
+    while time.time() < end:
+        try:
+            log.write(s.recv(4096).decode() + "\n---\n")
+            log.flush()
+        except socket.timeout:
+            pass
+PY
+  for _ in $(seq 50); do [ -S "$1" ] && break; sleep 0.1; done
+}
+run() {  # run <name> <config>: the daemon for 4 s with a notify socket and an LCM listener
+  notify_listener "$work/$1.sock" "$work/$1.notify.log"
+  "$vbutcher" lcm-listen --url "$url" --count 0 --status-count 12 --diagnostic-count 1 \
+    --status --diagnostics --timeout 20 >"$work/$1.listen.txt" &
+  local listener=$!
+  sleep 0.3
+  NOTIFY_SOCKET="$work/$1.sock" "$daemon" --config "$work/$2" --run-seconds 5 \
+    2>"$work/$1.daemon.log" || fail "$1: the daemon exited with $?"
+  wait $listener || true
+}
+
+version=$("$daemon" --version)
+[[ "$version" =~ ^virtualbutcherd\ [0-9]+\.[0-9]+\.[0-9]+\ \((.+)\)$ ]] ||
+  fail "--version printed '$version'"
+revision=${BASH_REMATCH[1]}
+[ "$("$vbutcher" --version)" = "vbutcher ${version#virtualbutcherd }" ] || fail "vbutcher --version differs"
+
+# 1. A camera missing at start.
+run missing missing.yaml
+grep -q "READY=1" "$work/missing.notify.log" || fail "no READY=1 with a camera missing"
+grep -A1 "READY=1" "$work/missing.notify.log" | grep -q "STATUS=DEGRADED.*cameras 1 of 2 ok (cam1 missing: cannot open the device)" ||
+  grep -q "READY=1.*STATUS=DEGRADED.*cam1 missing" "$work/missing.notify.log" ||
+  fail "READY=1 came without STATUS naming the missing camera"
+grep -q "^<4>virtualbutcherd: camera cam1 (serial VB0002) is missing: cannot open the device" "$work/missing.daemon.log" ||
+  fail "the missing camera was not logged at warning"
+grep -q "^<4>virtualbutcherd: serving DEGRADED: cameras 1 of 2 ok (cam1 missing" "$work/missing.daemon.log" ||
+  fail "no warning that the daemon serves degraded"
+grep -q "VB_STATUS seq .* state DEGRADED version ${version#virtualbutcherd }: DEGRADED" "$work/missing.listen.txt" ||
+  fail "VB_STATUS did not say DEGRADED with the version"
+grep -q "camera cam1 serial VB0002 state MISSING fps 0.0 valid 0.00 last frame never" "$work/missing.listen.txt" ||
+  fail "VB_STATUS did not show cam1 MISSING"
+grep -q "VB_DIAGNOSTICS seq .* WARNING camera:cam1: camera cam1 (serial VB0002) is missing" "$work/missing.listen.txt" ||
+  fail "VB_DIAGNOSTICS did not carry the camera's loss"
+# The working camera: its measured rate (the virtual rig runs at 30 fps; allow a loaded
+# machine's 20) and a recent last frame, in the last status received.
+last=$(grep "camera cam0 serial VB0001" "$work/missing.listen.txt" | tail -1)
+fps=$(sed -n 's/.* fps \([0-9.]*\) .*/\1/p' <<<"$last")
+ago=$(sed -n 's/.* last frame \([0-9]*\) ms ago/\1/p' <<<"$last")
+awk -v f="${fps:-0}" 'BEGIN { exit !(f >= 20 && f <= 33) }' || fail "cam0 fps '$fps' is not the measured ~30: $last"
+[ -n "$ago" ] && [ "$ago" -lt 1000 ] || fail "cam0's last frame is not recent: $last"
+
+# 2. All cameras present.
+run good good.yaml
+grep -q "READY=1" "$work/good.notify.log" || fail "no READY=1"
+grep -q "STATUS=ready, waiting for a carcass; cameras 2 of 2 ok;" "$work/good.notify.log" ||
+  fail "STATUS does not say ready with both cameras"
+grep -q "VB_STATUS seq .* state READY version .*($revision): ready" "$work/good.listen.txt" ||
+  fail "VB_STATUS did not say READY with the revision"
+! grep -q "^<[0-4]>" "$work/good.daemon.log" || fail "warnings with every camera present"
+grep -q "^<6>virtualbutcherd: virtualbutcherd .*($revision)" "$work/good.daemon.log" ||
+  fail "the start-up log does not give the version"
+
+# 3. simulation: true.
+run sim sim.yaml
+bad=$(grep -v "^<[0-7]>virtualbutcherd: SIMULATION: " "$work/sim.daemon.log" || true)
+[ -z "$bad" ] || fail "log lines without SIMULATION: $bad"
+grep -q "STATUS=SIMULATION; ready" "$work/sim.notify.log" || fail "STATUS does not say SIMULATION"
+grep -q "VB_STATUS seq .* state READY .*: SIMULATION; ready" "$work/sim.listen.txt" ||
+  fail "VB_STATUS does not say SIMULATION"
+echo "ok: a missing camera is named in READY's STATUS, the log (warning), VB_STATUS and VB_DIAGNOSTICS; measured fps $fps and last frame $ago ms ago; version $version in the log and VB_STATUS; SIMULATION on every line"
