@@ -49,8 +49,13 @@ class Problems {
       read();
     } catch (const InputError& e) {
       list_.push_back(e.what());
+    } catch (const YAML::Exception& e) {  // e.g. a key that is not a plain value
+      list_.push_back(source_ + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
+    } catch (const std::filesystem::filesystem_error& e) {
+      list_.push_back(source_ + ": " + e.what());
     }
   }
+  explicit Problems(std::string source) : source_(std::move(source)) {}
   void ThrowIfAny() const {
     if (list_.empty()) return;
     std::string all;
@@ -59,6 +64,7 @@ class Problems {
   }
 
  private:
+  std::string source_;
   std::vector<std::string> list_;
 };
 
@@ -77,10 +83,12 @@ class Section {
       return;
     }
     for (const auto& entry : node_) {
-      const std::string k = entry.first.as<std::string>();
-      bool known = false;
-      for (const char* allowed : keys) known |= k == allowed;
-      if (!known) problems_->Try([&] { r_.Fail(entry.first, key_ + "." + k, "unknown key"); });
+      problems_->Try([&] {
+        const std::string k = r_.Scalar<std::string>(entry.first, key_ + ".?");
+        bool known = false;
+        for (const char* allowed : keys) known |= k == allowed;
+        if (!known) r_.Fail(entry.first, key_ + "." + k, "unknown key");
+      });
     }
   }
   /// The child @p name; undefined (false) when it or the whole section is absent.
@@ -220,12 +228,14 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
   const YAML::Node root = io::YamlReader::LoadFile(path, "daemon configuration");
   const io::YamlReader r(path.string());
   r.ExpectFormat(root, "virtualbutcherd-config", DaemonConfig::kFormatVersion);
-  Problems problems;
+  Problems problems(path.string());
   for (const auto& entry : root) {
-    const std::string k = entry.first.as<std::string>();
-    bool known = false;
-    for (const char* allowed : kTopKeys) known |= k == allowed;
-    if (!known) problems.Try([&] { r.Fail(entry.first, k, "unknown key"); });
+    problems.Try([&] {
+      const std::string k = r.Scalar<std::string>(entry.first, "?");
+      bool known = false;
+      for (const char* allowed : kTopKeys) known |= k == allowed;
+      if (!known) r.Fail(entry.first, k, "unknown key");
+    });
   }
   DaemonConfig c;
   c.source = path;
@@ -237,7 +247,8 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
     if (!p.is_absolute())
       for (const std::filesystem::path& data : DataFolders()) candidates.push_back(data / p);
     for (const std::filesystem::path& candidate : candidates) {
-      if (std::filesystem::is_regular_file(candidate)) {
+      std::error_code error;
+      if (std::filesystem::is_regular_file(candidate, error)) {
         c.template_path = candidate;
         return;
       }
@@ -251,7 +262,8 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
     const YAML::Node n = r.Child(root, "rig", "");
     const std::filesystem::path p(r.Scalar<std::string>(n, "rig"));
     c.rig_path = p.is_absolute() ? p : folder / p;
-    if (!std::filesystem::is_regular_file(c.rig_path))
+    std::error_code error;
+    if (!std::filesystem::is_regular_file(c.rig_path, error))
       r.Fail(n, "rig", "no file " + c.rig_path.string());
     c.rig = perception::LoadRigCalibration(c.rig_path);
   });
@@ -259,7 +271,8 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
     problems.Try([&] {
       const std::filesystem::path p(r.Scalar<std::string>(n, "virtual_scene"));
       c.virtual_scene = p.is_absolute() ? p : folder / p;
-      if (!std::filesystem::is_regular_file(c.virtual_scene))
+      std::error_code error;
+      if (!std::filesystem::is_regular_file(c.virtual_scene, error))
         r.Fail(n, "virtual_scene", "no file " + c.virtual_scene.string());
     });
   }
@@ -368,6 +381,14 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
   if (root["X_SawRig"])
     problems.Try([&] { c.X_SawRig = r.Isometry(root["X_SawRig"], "X_SawRig"); });
 
+  // SIMULATION on real cameras would tell the operator that real carcasses are not real.
+  if (c.simulation && !c.rig.cameras.empty() && !UsesVirtualCameras(c)) {
+    problems.Try([&] {
+      r.Fail(root["simulation"], "simulation",
+             "is true, but the cameras are real (no virtual_scene, no vbrig:// or .oni URIs): "
+             "every log line would call real carcasses a simulation");
+    });
+  }
   // A virtual scene must never drive a real saw by accident.
   if (UsesVirtualCameras(c) && UsesSocketCan(c) && !c.simulation) {
     problems.Try([&] {
@@ -387,9 +408,13 @@ std::vector<std::string> CheckMachine(const DaemonConfig& config,
                                       std::vector<std::string>* warnings) {
   std::vector<std::string> problems;
   const std::string source = config.source.string() + ": ";
+  std::error_code error;  // an unreadable path counts as absent, never throws
+  auto is_directory = [&](const std::filesystem::path& p) {
+    return std::filesystem::is_directory(p, error);
+  };
   if (UsesSocketCan(config)) {
     const std::filesystem::path net = std::filesystem::path("/sys/class/net") / config.can.interface;
-    if (!std::filesystem::exists(net)) {
+    if (!std::filesystem::exists(net, error)) {
       problems.push_back(source + "can.interface: '" + config.can.interface +
                          "': no such network interface on this machine (ip link show)");
     } else if (const std::string type = ReadSmallFile(net / "type"); type != "280") {
@@ -399,15 +424,15 @@ std::vector<std::string> CheckMachine(const DaemonConfig& config,
     }
   } else if (config.can.interface.rfind("unix:", 0) == 0) {
     const std::filesystem::path socket = config.can.interface.substr(5);
-    if (!std::filesystem::is_directory(socket.parent_path()))
+    if (!is_directory(socket.parent_path()))
       problems.push_back(source + "can.interface: no folder " + socket.parent_path().string());
   }
-  if (!config.can.record.empty() && !std::filesystem::is_directory(config.can.record.parent_path()))
+  if (!config.can.record.empty() && !is_directory(config.can.record.parent_path()))
     problems.push_back(source + "can.record: no folder " + config.can.record.parent_path().string());
-  if (!config.job.dump_dir.empty() && !std::filesystem::is_directory(config.job.dump_dir))
+  if (!config.job.dump_dir.empty() && !is_directory(config.job.dump_dir))
     problems.push_back(source + "job.dump_dir: no folder " + config.job.dump_dir.string());
-  if (!config.job.state_file.empty() &&
-      !std::filesystem::is_directory(config.job.state_file.parent_path()) && warnings != nullptr)
+  if (!config.job.state_file.empty() && !is_directory(config.job.state_file.parent_path()) &&
+      warnings != nullptr)
     warnings->push_back(source + "job.state_file: no folder " +
                         config.job.state_file.parent_path().string() +
                         "; carcass numbers would start from the clock and not be kept across "

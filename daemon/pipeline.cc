@@ -1,6 +1,7 @@
 #include "daemon/pipeline.h"
 
 #include <array>
+#include <cstring>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -29,15 +30,14 @@ double SecondsSince(std::int64_t monotonic_ns) {
   return static_cast<double>(perception::MonotonicNs() - monotonic_ns) * 1e-9;
 }
 
-// A camera (re)opened and waiting for its first frame is STARTING the first time, RECOVERING
-// after a stream restart or device reopen; neither counts as OK.
+// A camera opened and waiting for its first frame is STARTING, not OK. (A camera being
+// recovered keeps the state it failed with, FROZEN or MISSING, until a good frame.)
 std::int8_t LcmHealth(const perception::CameraStatus& s) {
   switch (s.health) {
     case perception::CameraHealth::kOk:
       return vbutcher::camera_health_t::OK;
     case perception::CameraHealth::kStarting:
-      return s.stream_restarts + s.device_reopens > 0 ? vbutcher::camera_health_t::RECOVERING
-                                                      : vbutcher::camera_health_t::STARTING;
+      return vbutcher::camera_health_t::STARTING;
     case perception::CameraHealth::kFrozen:
       return vbutcher::camera_health_t::FROZEN;
     case perception::CameraHealth::kMissing:
@@ -174,8 +174,14 @@ void Pipeline::CaptureLoop() {
   std::string capture_fault;
   capture_fault.reserve(160);
   // Each camera's state as last logged: a change is logged (and sent on VB_DIAGNOSTICS) when
-  // it happens.
+  // it happens, at most once per camera every kCameraLogPeriodNs (a camera flickering
+  // between two states would flood the journal): changes in between are counted and the
+  // state then is logged when the period is over.
+  constexpr std::int64_t kCameraLogPeriodNs = 5'000'000'000;
   std::vector<std::int8_t> logged(static_cast<std::size_t>(n), -1);
+  std::vector<std::int64_t> logged_ns(static_cast<std::size_t>(n), 0);
+  std::vector<int> unlogged_changes(static_cast<std::size_t>(n), 0);
+  std::vector<std::int8_t> last_seen(static_cast<std::size_t>(n), -1);
   while (!stop_) {
     capture.Poll();
     capture_alive_ns_ = perception::MonotonicNs();
@@ -183,21 +189,34 @@ void Pipeline::CaptureLoop() {
       std::lock_guard<std::mutex> lock(state_mutex_);
       for (int c = 0; c < n; ++c) camera_status_[static_cast<std::size_t>(c)] = capture.status(c);
     }
+    const std::int64_t poll_ns = perception::MonotonicNs();
     for (int c = 0; c < n; ++c) {
+      const auto k = static_cast<std::size_t>(c);
       const perception::CameraStatus& status = capture.status(c);
       const std::int8_t now = LcmHealth(status);
-      std::int8_t& before = logged[static_cast<std::size_t>(c)];
+      if (last_seen[k] >= 0 && now != last_seen[k]) ++unlogged_changes[k];
+      last_seen[k] = now;
+      std::int8_t& before = logged[k];
       if (now == before) continue;
-      const bool first = before < 0;
+      if (before < 0 && now == vbutcher::camera_health_t::STARTING) {  // opening, as expected
+        before = now;
+        continue;
+      }
+      if (logged_ns[k] != 0 && poll_ns - logged_ns[k] < kCameraLogPeriodNs) continue;  // said soon
       before = now;
-      if (first && now == vbutcher::camera_health_t::STARTING) continue;  // opening, as expected
+      logged_ns[k] = poll_ns;
+      const int changes = unlogged_changes[k];
+      unlogged_changes[k] = 0;
       const perception::CameraCalibration& camera = capture.calibration(c);
-      char text[256];
+      char text[320];
       std::snprintf(text, sizeof text, "camera %s (serial %s) is %s%s%s", camera.name.c_str(),
-                    camera.serial.c_str(),
-                    now == vbutcher::camera_health_t::RECOVERING ? "recovering"
-                                                                 : perception::ToString(status.health),
+                    camera.serial.c_str(), perception::ToString(status.health),
                     *status.last_error != 0 ? ": " : "", status.last_error);
+      if (changes > 1) {
+        const std::size_t used = std::strlen(text);
+        std::snprintf(text + used, sizeof text - used, " (%d changes in the last %.0f s)",
+                      changes, static_cast<double>(kCameraLogPeriodNs) * 1e-9);
+      }
       const bool ok = now == vbutcher::camera_health_t::OK;
       Log(ok ? Priority::kInfo : Priority::kWarning, "%s", text);
       Diagnose(ok ? vbutcher::diagnostic_t::INFO : vbutcher::diagnostic_t::WARNING,
@@ -445,32 +464,35 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
   if (!publisher_->Publish(message))
     Log(Priority::kWarning, "cut lines of %s not published: %s\n",
                  report.carcass_id.c_str(), publisher_->last_error().c_str());
-  if (!config_.job.dump_dir.empty()) Dump(points, normals, result);
+  if (!config_.job.dump_dir.empty()) Dump(points, normals, result, report);
   // Per job on VB_DIAGNOSTICS: what an engineer needs to tell why a carcass was not cut.
   {
-    char text[900];
-    int n = std::snprintf(text, sizeof text, "%s: %s%s%s; %d points; fusion %.3f s, ",
-                          report.carcass_id.c_str(), ToString(outcome.verdict),
-                          outcome.reason.empty() ? "" : ": ", outcome.reason.c_str(),
-                          report.fused_points, fusion_s);
+    std::string text = report.carcass_id + ": " + ToString(outcome.verdict) +
+                       (outcome.reason.empty() ? "" : ": " + outcome.reason);
+    char numbers[400];
+    std::snprintf(numbers, sizeof numbers, "; %d points; fusion %.3f s, ", report.fused_points,
+                  fusion_s);
+    text += numbers;
     if (!refusal.empty()) {
-      std::snprintf(text + n, sizeof text - static_cast<std::size_t>(n), "not morphed");
+      text += "not morphed";
     } else {
-      n += std::snprintf(
-          text + n, sizeof text - static_cast<std::size_t>(n),
+      std::snprintf(
+          numbers, sizeof numbers,
           "morph %.3f s (coarse %.3f, dense %.3f, cuts %.3f), send %.3f s, answer %.3f s, "
           "latency %.3f s; noise %.1f mm; morph check %.2f (ambiguity %.2f, unexplained %.2f, "
-          "stretch %.2f)%s%s; cut confidence",
+          "stretch %.2f)",
           result.seconds, result.coarse.total_seconds, result.dense.total_seconds,
           result.cuts_seconds, outcome.send_s, outcome.answer_s, report.latency_s,
           1000 * result.dense.noise * artifact_.model.size, result.check.confidence,
-          result.check.ambiguity, result.check.unexplained, result.check.stretch,
-          result.check.concern.empty() ? "" : ": ", result.check.concern.c_str());
-      for (std::size_t c = 0; c < result.cuts.size() && n < static_cast<int>(sizeof text); ++c)
-        n += std::snprintf(text + n, sizeof text - static_cast<std::size_t>(n), " %s %.2f",
-                           result.cuts[c].name.c_str(), result.cuts[c].confidence);
-      if (result.cuts.empty() && n < static_cast<int>(sizeof text))
-        std::snprintf(text + n, sizeof text - static_cast<std::size_t>(n), " none");
+          result.check.ambiguity, result.check.unexplained, result.check.stretch);
+      text += numbers;
+      if (!result.check.concern.empty()) text += ": " + result.check.concern;
+      text += "; cut confidence";
+      for (const morph::TransferredCut& cut : result.cuts) {
+        std::snprintf(numbers, sizeof numbers, " %.2f", cut.confidence);
+        text += " " + cut.name + numbers;
+      }
+      if (result.cuts.empty()) text += " none";
     }
     Diagnose(outcome.verdict == Verdict::kAccepted ? vbutcher::diagnostic_t::INFO
                                                    : vbutcher::diagnostic_t::WARNING,
@@ -483,21 +505,24 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
 }
 
 void Pipeline::Dump(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
-                    const morph::CarcassResult& result) const {
+                    const morph::CarcassResult& result, const JobReport& report) const {
   try {
     io::PointCloud cloud;
     cloud.points = points;
     cloud.normals = normals;
     io::WriteCloud(config_.job.dump_dir / "last_fused.ply", cloud);
     std::ofstream out(config_.job.dump_dir / "last_cuts.csv");
-    out << "cut,index,x,y,z\n";
+    out << "cut,index,x,y,z,confidence\n";
     for (const morph::TransferredCut& c : result.cuts)
       for (std::size_t i = 0; i < c.line.size(); ++i)
         out << c.name << ',' << i << ',' << c.line[i].x() << ',' << c.line[i].y() << ','
-            << c.line[i].z() << '\n';
+            << c.line[i].z() << ',' << c.confidence << '\n';
+    // Who the picture is of (scripts/plot-carcass puts it in the title).
+    std::ofstream job(config_.job.dump_dir / "last_job.txt");
+    job << "carcass " << report.carcass_id << "\nverdict " << ToString(report.verdict)
+        << "\nreason " << report.reason << "\n";
   } catch (const std::exception& e) {  // a full disk must not stop the line
-    Log(Priority::kWarning, "cannot write to %s: %s\n",
-                 config_.job.dump_dir.c_str(), e.what());
+    Log(Priority::kWarning, "cannot write to %s: %s", config_.job.dump_dir.c_str(), e.what());
   }
 }
 
@@ -592,12 +617,10 @@ std::string Pipeline::CameraSummaryLocked() const {
   for (std::size_t c = 0; c < camera_status_.size() && n < static_cast<int>(sizeof text); ++c) {
     const perception::CameraStatus& s = camera_status_[c];
     if (s.health == perception::CameraHealth::kOk) continue;
-    const std::int8_t health = LcmHealth(s);
     n += std::snprintf(text + n, sizeof text - static_cast<std::size_t>(n), "%s%s %s%s%s",
                        separator, config_.rig.cameras[c].name.c_str(),
-                       health == vbutcher::camera_health_t::RECOVERING ? "recovering"
-                                                                       : perception::ToString(s.health),
-                       *s.last_error != 0 ? ": " : "", s.last_error);
+                       perception::ToString(s.health), *s.last_error != 0 ? ": " : "",
+                       s.last_error);
     separator = "; ";
   }
   if (ok < static_cast<int>(camera_status_.size()) && n < static_cast<int>(sizeof text))

@@ -90,7 +90,7 @@ class Pipeline {
                      const JobNumbers::Ids& ids, std::int64_t frames_ns);
   void PublishStatus();
   void Dump(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
-            const morph::CarcassResult& result) const;
+            const morph::CarcassResult& result, const JobReport& report) const;
   std::string StatusLineLocked() const;
   std::string CameraSummaryLocked() const;
   // One event on VB_DIAGNOSTICS (level: vbutcher::diagnostic_t::INFO, WARNING or ERROR).

@@ -7,6 +7,7 @@
 #include <signal.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
@@ -106,6 +107,9 @@ int main(int argc, char** argv) {
   } catch (const vb::InputError& e) {
     vb::daemon::LogLines(Priority::kError, e.what());
     return 2;
+  } catch (const std::exception& e) {  // a file the readers did not expect to fail this way
+    Log(Priority::kError, "%s: %s", config_path.c_str(), e.what());
+    return 2;
   }
   if (config.simulation) {
     Log(Priority::kWarning,
@@ -176,11 +180,13 @@ int main(int argc, char** argv) {
   Log(Priority::kInfo, "LCM on %s, saw link %s (%s)\n", config.lcm.url.c_str(),
                config.can.interface.c_str(), saw->state().c_str());
   // READY=1 once every camera has either delivered a frame or been found missing (at most
-  // first_frame_timeout_ms): the daemon then serves, degraded if a camera is not ok, and
-  // says so in STATUS, the log and VB_STATUS. Jobs go out only from healthy frame sets.
+  // first_frame_timeout_ms, and never over 20 s: the unit's TimeoutStartSec is 30 s): the
+  // daemon then serves, degraded if a camera is not ok, and says so in STATUS, the log and
+  // VB_STATUS. Jobs go out only from healthy frame sets.
   {
-    const auto settle_until = std::chrono::steady_clock::now() +
-                              std::chrono::milliseconds(config.capture.first_frame_timeout_ms + 500);
+    const auto settle_until =
+        std::chrono::steady_clock::now() +
+        std::chrono::milliseconds(std::min(config.capture.first_frame_timeout_ms + 500, 20000));
     auto next = std::chrono::steady_clock::now();
     while (!pipeline->CamerasSettled() && std::chrono::steady_clock::now() < settle_until &&
            g_signal == 0) {

@@ -140,8 +140,10 @@ TemplateArtifact LoadTemplateArtifact(const std::filesystem::path& path) {
   if (nv < 4 || m.mesh.num_faces() < 4) r.Fail("mesh.V", "too small to be a template");
   if (!m.mesh.V.allFinite() || !m.mesh.N.allFinite()) r.Fail("mesh.V", "has non-finite values");
   if (m.mesh.N.cols() != nv) r.Fail("mesh.N", "does not have one normal per vertex");
-  if (((m.mesh.N.colwise().norm().array() - 1.0).abs() > 1e-3).any())
-    r.Fail("mesh.N", "has a normal that is not unit length");
+  // Unit normals, or zero where a degenerate vertex has none (VertexNormals leaves those).
+  const Eigen::ArrayXd lengths = m.mesh.N.colwise().norm().transpose().array();
+  if (((lengths - 1.0).abs() > 1e-3 && lengths > 1e-12).any())
+    r.Fail("mesh.N", "has a normal that is neither unit length nor zero");
   CheckIndices(r, "mesh.F", m.mesh.F.reshaped(), nv);
   const Eigen::MatrixXd frame = r.Doubles("frame", 4);
   if (frame.cols() != 1 || !frame.allFinite() || !(frame(3, 0) > 0))

@@ -191,6 +191,17 @@ TEST_F(DaemonConfigTest, RefusesVirtualCamerasOnARealCanInterfaceUnlessSimulatio
   EXPECT_NO_THROW(load("rig: vrig.yaml\ncan: {interface: loopback}\n"));
   EXPECT_NO_THROW(load("rig: vrig.yaml\ncan: {interface: \"unix:/tmp/saw.sock\"}\n"));
   EXPECT_TRUE(load("rig: vrig.yaml\nsimulation: true\ncan: {interface: can0}\n").simulation);
+  // SIMULATION on every line while real cameras see real carcasses would be a lie.
+  EXPECT_THAT(error("rig: rig.yaml\nsimulation: true\ncan: {interface: can0}\n"),
+              HasSubstr("sim.yaml:5: simulation: is true, but the cameras are real"));
+}
+
+TEST_F(DaemonConfigTest, AKeyThatIsNotAPlainValueIsAProblemNotACrash) {
+  EXPECT_THAT(Error("capture: {? [fps, x] : 3, fps: 500}\n"),
+              HasSubstr("vbd.yaml:5: capture.?: expected a single value"));
+  EXPECT_THAT(Error("capture: {? [fps, x] : 3, fps: 500}\n"),
+              HasSubstr("capture.fps: value 500 is outside"));
+  EXPECT_THAT(Error("? {a: 1}\n: 2\n"), HasSubstr("vbd.yaml:5: ?: expected a single value"));
 }
 
 TEST(DaemonConfigLcmUrlTest, AcceptsWhatLcmPublishesOnAndNamesWhatIsWrong) {

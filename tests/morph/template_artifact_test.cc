@@ -115,7 +115,8 @@ TEST_F(TemplateArtifactTest, RefusesAWellFormedFileWithNonFiniteFeaturesOrSkelet
   EXPECT_THAT(error([&](TemplateArtifact* a) { a->model.skeleton.nodes(2, 3) = nan; }),
               HasSubstr("section 'skeleton.nodes': has non-finite values"));
   EXPECT_THAT(error([&](TemplateArtifact* a) { a->model.mesh.N.col(5) *= 2; }),
-              HasSubstr("section 'mesh.N': has a normal that is not unit length"));
+              HasSubstr("section 'mesh.N': has a normal that is neither unit length nor zero"));
+  EXPECT_EQ(error([](TemplateArtifact* a) { a->model.mesh.N.col(7).setZero(); }), "(accepted)");
   EXPECT_EQ(error([](TemplateArtifact*) {}), "(accepted)");
 }
 
