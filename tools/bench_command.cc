@@ -192,6 +192,10 @@ int RunBenchCommand(const BenchOptions& given) {
       "nodes)\n",
       lamb.mesh.num_vertices(), lamb.seconds, lamb.features.num_terminals(),
       lamb.features.num_junctions(), lamb.graph.num_nodes());
+  BenchProgress progress("bench coarse",
+                         static_cast<int>(options.sigmas_mm.size()) *
+                             ((options.clouds ? 2 : 1) * options.pairs +
+                              static_cast<int>(options.shapes.size()) * options.shape_pairs));
   for (double sigma : options.sigmas_mm) {
     for (const char* input : {"mesh", "cloud"}) {
       if (std::string(input) == "cloud" && !options.clouds) continue;
@@ -214,6 +218,8 @@ int RunBenchCommand(const BenchOptions& given) {
         row.input = input;
         row.sigma_mm = sigma;
         row.index = i;
+        progress.Step(std::string("lamb ") + input + " sigma " + FormatMm(sigma) + " #" +
+                      std::to_string(i));
         rows.push_back(row);
       }
     }
@@ -247,6 +253,7 @@ int RunBenchCommand(const BenchOptions& given) {
         row.input = "mesh";
         row.sigma_mm = sigma;
         row.index = i;
+        progress.Step(name + " sigma " + FormatMm(sigma) + " #" + std::to_string(i));
         rows.push_back(row);
       }
     }

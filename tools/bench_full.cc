@@ -217,6 +217,13 @@ int RunFullBench(const BenchOptions& options) {
   std::vector<std::pair<std::string, double>> groups;
   Example example;
   bool have_example = false;
+  const int lamb_inputs = options.clouds ? 2 : 1;
+  BenchProgress progress(
+      "bench full",
+      static_cast<int>(options.sigmas_mm.size()) * (lamb_inputs * options.pairs +
+                                                      static_cast<int>(options.shapes.size()) *
+                                                          options.shape_pairs) +
+          (options.rig ? options.pairs : 0));
   for (double sigma : options.sigmas_mm) {
     for (const char* input : {"mesh", "cloud"}) {
       if (std::string(input) == "cloud" && !options.clouds) continue;
@@ -248,6 +255,8 @@ int RunFullBench(const BenchOptions& options) {
         row.index = i;
         if (!row.ok)
           std::printf("  %s sigma %g #%d failed: %s\n", input, sigma, i, row.error.c_str());
+        progress.Step(std::string("lamb ") + input + " sigma " + FormatMm(sigma) + " #" +
+                      std::to_string(i) + (row.ok ? "" : " failed"));
         rows.push_back(row);
       }
     }
@@ -285,6 +294,7 @@ int RunFullBench(const BenchOptions& options) {
       row.sigma_mm = -1;
       row.index = i;
       if (!row.ok) std::printf("  rig #%d failed: %s\n", i, row.error.c_str());
+      progress.Step("lamb rig #" + std::to_string(i) + (row.ok ? "" : " failed"));
       rows.push_back(row);
     }
   }
@@ -316,11 +326,17 @@ int RunFullBench(const BenchOptions& options) {
         const io::TriangleMesh noisy =
             perception::AddNormalNoise(truth, sigma / 1000.0 * size / 1.2, 31 + i);
         ++sr.n;
+        const std::string step =
+            sr.name + " sigma " + FormatMm(sigma) + " #" + std::to_string(i);
         const auto start = std::chrono::steady_clock::now();
         const morph::CoarseResult coarse = morph::AlignCoarse(shape, noisy.V);
-        if (!coarse.ok) continue;
+        if (!coarse.ok) {
+          progress.Step(step + " failed");
+          continue;
+        }
         const morph::DenseResult dense =
             morph::AlignDense(shape, coarse, noisy.V, io::VertexNormals(noisy), dense_options);
+        progress.Step(step + (dense.ok ? "" : " failed"));
         if (!dense.ok) continue;
         ++sr.ok;
         const double diagonal = TrueSize(shape.mesh.V, truth.V);

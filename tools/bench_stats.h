@@ -3,7 +3,11 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "io/mesh_measures.h"
@@ -35,5 +39,39 @@ inline double TrueSize(const Eigen::Matrix3Xd& rest, const Eigen::Matrix3Xd& tru
   return io::BoundingBoxDiagonal(rest) *
          morph::Similarity::FromUmeyama(Eigen::umeyama(rest, truth, true)).scale;
 }
+
+/// @p mm as "4 mm" or "0.5 mm".
+inline std::string FormatMm(double mm) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g mm", mm);
+  return text;
+}
+
+/// One progress line on stderr per finished step of a long benchmark, so that a run of
+/// minutes says how far it is: "[12/96, 41 s, about 287 s left] bench full: cloud sigma 4 mm #2".
+/// The time left is the mean time per step so far times the steps left.
+class BenchProgress {
+ public:
+  /// @p label names the benchmark; @p total is its number of steps (at least 1).
+  BenchProgress(std::string label, int total)
+      : label_(std::move(label)), total_(std::max(1, total)),
+        start_(std::chrono::steady_clock::now()) {}
+
+  /// Marks one more step done and prints @p what (the step's own description).
+  void Step(const std::string& what) {
+    ++done_;
+    const double elapsed =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    const double left = elapsed / done_ * std::max(0, total_ - done_);
+    std::fprintf(stderr, "[%d/%d, %.0f s, about %.0f s left] %s: %s\n", done_, total_, elapsed,
+                 left, label_.c_str(), what.c_str());
+  }
+
+ private:
+  std::string label_;
+  int total_;
+  int done_ = 0;
+  std::chrono::steady_clock::time_point start_;
+};
 
 }  // namespace vb::tools

@@ -90,7 +90,7 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   io::WriteMesh(options.out_path, full ? dense.mesh : coarse.mesh);
   std::printf(
       "morph: template model %.2f s; target skeleton %.3f s, association %.3f s (%ld candidates, "
-      "rms %.4g, placed by %s), deformation %.3f s (%d iterations, %s); coarse total %.3f s\n",
+      "rms %.4g of the size, placed by %s), deformation %.3f s (%d iterations, %s); coarse total %.3f s\n",
       model.seconds, coarse.skeleton_seconds, coarse.association_seconds,
       coarse.association.candidates, coarse.association.rms_residual,
       coarse.placed_by_skeletons ? "skeleton pairing" : "principal axes",
@@ -105,8 +105,9 @@ int RunMorphCommand(const MorphCommandOptions& options) {
                                        std::to_string(dense.target.cols()) + " of " +
                                        std::to_string(target.points.cols());
     std::printf(
-        "morph: dense: noise %.3g of the size (%s), normals %.3f s, %zu rounds, total %.3f s\n",
-        dense.noise, used.c_str(), dense.normals_seconds, dense.rounds.size(), dense.total_seconds);
+        "morph: dense: noise %.1f mm (%.3g of the size; %s), normals %.3f s, %zu rounds, total "
+        "%.3f s\n",
+        1000 * dense.noise * model.size, dense.noise, used.c_str(), dense.normals_seconds, dense.rounds.size(), dense.total_seconds);
   }
   if (full) {
     // How the morph sits on the scan, with no ground truth: every scan point's distance to the
@@ -128,7 +129,7 @@ int RunMorphCommand(const MorphCommandOptions& options) {
     const Eigen::AngleAxisd turn(placed.R);
     const Eigen::Vector3d up = placed.R.col(2);
     std::printf("morph: placement: scale %.3f, turned %.1f deg about (%+.3f %+.3f %+.3f), the "
-                "template's +z now (%+.3f %+.3f %+.3f), centre (%.3f %.3f %.3f)\n",
+                "template's +z now (%+.3f %+.3f %+.3f), centre (%.3f %.3f %.3f) m\n",
                 placed.scale, turn.angle() * 180.0 / std::numbers::pi, turn.axis().x(),
                 turn.axis().y(), turn.axis().z(), up.x(), up.y(), up.z(),
                 dense.mesh.V.rowwise().mean().x(), dense.mesh.V.rowwise().mean().y(),
@@ -144,17 +145,18 @@ int RunMorphCommand(const MorphCommandOptions& options) {
     const std::vector<io::PartMeasure>& parts = result.parts;
     for (const morph::TransferredCut& c : cuts) {
       std::printf(
-          "cut %-14s normal (%+.3f %+.3f %+.3f) fit rms %.4g slide %+.4g (+/- %.2g; band %.3g read "
-          "%+.4g +/- %.2g) coverage %.2f confidence %.2f\n",
-          c.name.c_str(), c.plane.normal.x(), c.plane.normal.y(), c.plane.normal.z(), c.fit_rms,
-          c.slide, c.slide_error, c.slide_band, c.band_slide, c.band_slide_error, c.coverage,
-          c.confidence);
+          "cut %-14s normal (%+.3f %+.3f %+.3f) fit rms %.1f mm slide %+.1f mm (+/- %.1f mm; band "
+          "%.0f mm read %+.1f +/- %.1f mm) coverage %.2f confidence %.2f\n",
+          c.name.c_str(), c.plane.normal.x(), c.plane.normal.y(), c.plane.normal.z(),
+          1000 * c.fit_rms, 1000 * c.slide, 1000 * c.slide_error, 1000 * c.slide_band,
+          1000 * c.band_slide, 1000 * c.band_slide_error, c.coverage, c.confidence);
     }
     double total_volume = 0;
     for (const io::PartMeasure& part : parts) total_volume += part.volume;
     for (std::size_t k = 0; k < parts.size(); ++k) {
-      std::printf("part %-10s volume %.6g (%.1f %% of the carcass) area %.6g\n",
-                  annotations.parts[k].c_str(), parts[k].volume,
+      // Volumes in litres and areas in square metres, the target being in metres.
+      std::printf("part %-10s volume %.3f L (%.1f %% of the carcass) area %.4f m2\n",
+                  annotations.parts[k].c_str(), 1000 * parts[k].volume,
                   total_volume > 0 ? 100 * parts[k].volume / total_volume : 0.0, parts[k].area);
     }
     if (!options.cuts_path.empty())
@@ -167,7 +169,7 @@ namespace {
 void Describe(const morph::TemplateArtifact& a) {
   const morph::TemplateModel& m = a.model;
   std::printf(
-      "template %s version %d: %d vertices, %d faces, size %.4g; skeleton %d nodes, %d "
+      "template %s version %d: %d vertices, %d faces, size %.3f m; skeleton %d nodes, %d "
       "terminals, %d junctions; deformation graph %d nodes, %zu edges, %zu bridges; %zu cuts\n",
       a.template_id.c_str(), a.template_version, m.mesh.num_vertices(), m.mesh.num_faces(), m.size,
       m.skeleton.num_nodes(), m.features.num_terminals(), m.features.num_junctions(),

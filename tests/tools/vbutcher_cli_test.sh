@@ -56,10 +56,11 @@ check "the upright prior's tilt is range-checked" nonzero "max-tilt-deg" \
   --template-up 0 0 1 --target-up 0 0 1 --max-tilt-deg 200
 printf 'OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n' > "$work/open.off"
 # The full stage with the template's cut annotations: morphed mesh, cuts and part measures.
-check "morph --stage full transfers the cuts" 0 "part shoulder" \
+check "morph --stage full transfers the cuts, parts in litres and square metres" 0 \
+  "part shoulder *volume [0-9.]* L (.*) area [0-9.]* m2" \
   "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_001_cloud.ply" --out "$work/f.ply" \
   --stage full --annotations "$work/set/template_annotations.yaml" --cuts "$work/c.json" --report "$work/fr.json"
-for key in '"leg_loin"' '"loin_rack"' '"rack_shoulder"' '"confidence"' '"volume"'; do
+for key in '"leg_loin"' '"loin_rack"' '"rack_shoulder"' '"confidence"' '"volume"' '"units"'; do
   grep -q -- "$key" "$work/c.json" 2>/dev/null || { echo "FAIL: cuts JSON lacks $key"; failures=$((failures + 1)); }
 done
 grep -q '"rounds"' "$work/fr.json" 2>/dev/null || { echo "FAIL: report lacks the dense rounds"; failures=$((failures + 1)); }
