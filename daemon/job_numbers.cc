@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <iomanip>
 
 namespace vb::daemon {
 namespace {
@@ -36,11 +37,13 @@ JobNumbers::JobNumbers(std::filesystem::path state_file) : path_(std::move(state
                "from the clock (" + Name(floor) + ")";
     return;
   }
-  std::string header;
-  std::getline(in, header);
+  char first_line[64] = {};  // bounded: a hostile state file is not read whole
+  in.getline(first_line, sizeof first_line);
+  const std::string header = first_line;
   std::string carcass_key, sequence_key;
   std::int64_t carcass = -1, sequence = -1;
-  in >> carcass_key >> carcass >> sequence_key >> sequence;
+  if (in && header == kHeader)
+    in >> std::setw(16) >> carcass_key >> carcass >> std::setw(16) >> sequence_key >> sequence;
   if (header != kHeader || carcass_key != "carcass" || sequence_key != "sequence" || !in ||
       carcass < 0 || carcass > 0xFFFFFFFELL || sequence < 0 || sequence > 255) {
     warning_ = "job state " + path_.string() + ": not a '" + kHeader +
@@ -62,8 +65,8 @@ JobNumbers::Ids JobNumbers::Next(std::string* error) {
   // Written in place of the old one only once it is on disk, so a crash leaves one or the
   // other, never half of one. No heap allocation (the job thread's budget).
   const int fd = open(temporary_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  bool ok = fd >= 0 && write(fd, text, static_cast<std::size_t>(length)) == length &&
-            fsync(fd) == 0;
+  bool ok =
+      fd >= 0 && write(fd, text, static_cast<std::size_t>(length)) == length && fsync(fd) == 0;
   const int saved = errno;
   if (fd >= 0) close(fd);
   ok = ok && rename(temporary_.c_str(), path_.c_str()) == 0;

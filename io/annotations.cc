@@ -67,7 +67,7 @@ Annotations LoadAnnotations(const std::filesystem::path& path) {
         sp.barycentric[k] = r.Finite(p[k + 1], pkey);
         if (sp.barycentric[k] < -1e-9 || sp.barycentric[k] > 1 + 1e-9) {
           r.Fail(p[k + 1], pkey,
-                 "barycentric coordinate " + p[k + 1].Scalar() + " is outside [0, 1]");
+                 "barycentric coordinate " + Excerpt(p[k + 1].Scalar()) + " is outside [0, 1]");
         }
       }
       if (std::abs(sp.barycentric.sum() - 1.0) > 1e-6) {

@@ -37,9 +37,14 @@ TriangleMesh ReadObj(const std::filesystem::path& path, const ReadLimits& limits
   while (scan.NextLine()) {
     const std::string_view keyword = scan.tokens()[0];
     if (keyword == "v") {
+      CheckLimit(path.string(), "vertices", static_cast<std::int64_t>(positions.size() / 3 + 1),
+                 limits.max_points, "--max-points");
       for (std::size_t k = 1; k <= 3; ++k) positions.push_back(scan.Double(k, "vertex coordinate"));
     } else if (keyword == "vn") {
-      for (std::size_t k = 1; k <= 3; ++k) normals.push_back(scan.DoubleOrNonFinite(k, "normal component"));
+      CheckLimit(path.string(), "normals", static_cast<std::int64_t>(normals.size() / 3 + 1),
+                 limits.max_points, "--max-points");
+      for (std::size_t k = 1; k <= 3; ++k)
+        normals.push_back(scan.DoubleOrNonFinite(k, "normal component"));
     } else if (keyword == "f") {
       const std::size_t n = scan.tokens().size() - 1;
       if (n < 3 || n > static_cast<std::size_t>(limits.max_polygon_vertices)) {
@@ -69,6 +74,8 @@ TriangleMesh ReadObj(const std::filesystem::path& path, const ReadLimits& limits
       }
       internal::AppendFan(polygon, &triangles);
       internal::AppendFan(polygon_normals, &corner_normals);
+      CheckLimit(path.string(), "triangles", static_cast<std::int64_t>(triangles.size() / 3),
+                 limits.max_faces, "--max-faces");
     }
   }
   TriangleMesh mesh;

@@ -16,7 +16,7 @@ TriangleMesh ReadOff(const std::filesystem::path& path, const ReadLimits& limits
   if (!scan.NextLine()) scan.Fail("empty file, expected OFF header");
   const std::string_view magic = scan.tokens()[0];
   if (magic != "OFF" && magic != "NOFF" && magic != "COFF" && magic != "CNOFF") {
-    scan.Fail("expected 'OFF', 'NOFF', 'COFF' or 'CNOFF', found '" + std::string(magic) + "'");
+    scan.Fail("expected 'OFF', 'NOFF', 'COFF' or 'CNOFF', found '" + Excerpt(magic) + "'");
   }
   // Colours (COFF) follow the coordinates and normals; they are read past, not kept.
   const bool with_normals = magic == "NOFF" || magic == "CNOFF";
@@ -27,6 +27,8 @@ TriangleMesh ReadOff(const std::filesystem::path& path, const ReadLimits& limits
   }
   const std::int64_t nv = scan.Int(first, "vertex count");
   const std::int64_t nf = scan.Int(first + 1, "face count");
+  CheckLimit(path.string(), "vertices", nv, limits.max_points, "--max-points");
+  CheckLimit(path.string(), "faces", nf, limits.max_faces, "--max-faces");
   // Each vertex needs at least "0 0 0\n", each face "3 0 1 2\n".
   if (nv < 0 || nf < 0 ||
       static_cast<std::uint64_t>(nv) * 6 + static_cast<std::uint64_t>(nf) * 8 > text.size()) {
@@ -70,6 +72,8 @@ TriangleMesh ReadOff(const std::filesystem::path& path, const ReadLimits& limits
       polygon.push_back(static_cast<int>(index));
     }
     internal::AppendFan(polygon, &triangles);
+    CheckLimit(path.string(), "triangles", static_cast<std::int64_t>(triangles.size() / 3),
+               limits.max_faces, "--max-faces");
   }
   mesh.F = internal::FacesFromFlat(triangles);
   return mesh;

@@ -13,13 +13,17 @@
 #include <vector>
 
 #include "io/error.h"
+#include "io/read_limits.h"
 
 namespace vb::io {
 namespace {
 
-// PCL's readHeader already sizes the point buffer from WIDTH x HEIGHT, so a lying header
-// must be caught before PCL sees the file. This reads only the header's few keywords.
-void CheckHeaderAgainstFileSize(const std::filesystem::path& path, std::uint64_t file_bytes) {
+// PCL's readHeader already sizes the point buffer from WIDTH x HEIGHT, and its compressed
+// reader allocates what the body's first word claims, so a lying header must be caught before
+// PCL sees the file. This reads only the header's few keywords and, for binary_compressed
+// data, the two sizes that open the body.
+void CheckHeaderAgainstFileSize(const std::filesystem::path& path, std::uint64_t file_bytes,
+                                const ReadLimits& limits) {
   const std::string source = path.string();
   std::ifstream in(path, std::ios::binary);
   std::string line;
@@ -44,6 +48,14 @@ void CheckHeaderAgainstFileSize(const std::filesystem::path& path, std::uint64_t
   }
   if (data.empty())
     throw InputError(source + ": malformed PCD header (no DATA line in the first 64 lines)");
+  if (header_bytes > limits.max_header_bytes) {
+    throw InputError(source + ": PCD header of " + std::to_string(header_bytes) +
+                     " bytes, more than the limit of " + std::to_string(limits.max_header_bytes));
+  }
+  if (sizes.size() > static_cast<std::size_t>(limits.max_properties)) {
+    throw InputError(source + ": " + std::to_string(sizes.size()) +
+                     " fields, more than the limit of " + std::to_string(limits.max_properties));
+  }
   for (std::size_t i = 0; i < sizes.size(); ++i) {
     const std::uint64_t count = i < counts.size() ? counts[i] : 1;
     if (sizes[i] > 8 || count > 1024)
@@ -55,6 +67,8 @@ void CheckHeaderAgainstFileSize(const std::filesystem::path& path, std::uint64_t
     throw InputError(source + ": PCD WIDTH or HEIGHT is implausibly large");
   }
   const std::uint64_t points = width * height;
+  CheckLimit(source, "points", static_cast<std::int64_t>(points), limits.max_points,
+             "--max-points");
   const std::uint64_t body = file_bytes - std::min(header_bytes, file_bytes);
   // ascii: at least two characters per value; binary: exact; compressed: LZF expands at most
   // about 100 times, so 256 is a safe ceiling.
@@ -66,6 +80,31 @@ void CheckHeaderAgainstFileSize(const std::filesystem::path& path, std::uint64_t
     throw InputError(source + ": header declares " + std::to_string(points) +
                      " points, more than a file of " + std::to_string(file_bytes) +
                      " bytes can hold");
+  }
+  if (data == "binary_compressed") {
+    // The body opens with the compressed and the uncompressed size (two little-endian 32-bit
+    // words); PCL allocates the second before it decompresses.
+    in.clear();
+    in.seekg(static_cast<std::streamoff>(header_bytes));
+    unsigned char words[8] = {};
+    if (body < 8 || !in.read(reinterpret_cast<char*>(words), 8)) {
+      throw InputError(source + ": binary_compressed body too short for its sizes");
+    }
+    auto word = [&words](int k) {
+      return std::uint64_t{words[4 * k]} | std::uint64_t{words[4 * k + 1]} << 8 |
+             std::uint64_t{words[4 * k + 2]} << 16 | std::uint64_t{words[4 * k + 3]} << 24;
+    };
+    const std::uint64_t compressed = word(0), uncompressed = word(1);
+    if (compressed > body - 8) {
+      throw InputError(source + ": binary_compressed body claims " + std::to_string(compressed) +
+                       " compressed bytes, but holds " + std::to_string(body - 8));
+    }
+    if (uncompressed != points * point_step) {
+      throw InputError(source + ": binary_compressed body claims " + std::to_string(uncompressed) +
+                       " bytes uncompressed, but " + std::to_string(points) + " points of " +
+                       std::to_string(point_step) + " bytes are " +
+                       std::to_string(points * point_step));
+    }
   }
 }
 
@@ -86,7 +125,7 @@ PointCloud ReadPcd(const std::filesystem::path& path, const ReadLimits& limits) 
     throw InputError(source + ": file size is unreadable or above the limit of " +
                      std::to_string(limits.max_file_bytes));
   }
-  CheckHeaderAgainstFileSize(path, file_bytes);
+  CheckHeaderAgainstFileSize(path, file_bytes, limits);
   pcl::PCDReader reader;
   pcl::PCLPointCloud2 blob;
   Eigen::Vector4f origin;

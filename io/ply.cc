@@ -3,11 +3,14 @@
 #include <pcl/io/ply/ply_parser.h>
 
 #include <bit>
+#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <optional>
+#include <sstream>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -92,6 +95,10 @@ struct PlyState {
       }
     }
     internal::AppendFan(polygon, &triangles);
+    if (static_cast<std::int64_t>(triangles.size() / 3) > limits.max_faces) {
+      Fail("more than " + std::to_string(limits.max_faces) +
+           " triangles after splitting polygons (--max-faces raises the limit)");
+    }
   }
 
   bool EndHeader() {
@@ -210,6 +217,60 @@ void RegisterAllLists(PlyState* s, Parser::list_property_definition_callbacks_ty
   };
 }
 
+// Reads the header alone, at most limits.max_header_bytes of it, and checks its size, the
+// elements' counts and their properties against @p limits before PCL's parser, which takes
+// time in proportion to the properties and sizes its buffers from the counts, sees the file.
+void CheckPlyHeader(const std::string& source, const ReadLimits& limits) {
+  std::ifstream in(source, std::ios::binary);
+  if (!in) throw InputError(source + ": cannot open for reading");
+  std::string header(static_cast<std::size_t>(limits.max_header_bytes), '\0');
+  in.read(header.data(), static_cast<std::streamsize>(header.size()));
+  header.resize(static_cast<std::size_t>(in.gcount()));
+  std::size_t end = std::string::npos;
+  for (std::size_t at = header.find("end_header"); at != std::string::npos;
+       at = header.find("end_header", at + 1)) {
+    if (at > 0 && header[at - 1] == '\n') {
+      end = at;
+      break;
+    }
+  }
+  if (end == std::string::npos) {
+    throw InputError(source + ": no end_header line in the first " + std::to_string(header.size()) +
+                     " bytes (a PLY header may have at most " +
+                     std::to_string(limits.max_header_bytes) + ")");
+  }
+  std::istringstream lines(header.substr(0, end));
+  std::string line, element;
+  int properties = 0, elements = 0;
+  while (std::getline(lines, line)) {
+    std::istringstream fields(line);
+    std::string keyword;
+    fields >> keyword;
+    if (keyword == "element") {
+      std::string count_text;
+      fields >> element >> count_text;
+      properties = 0;
+      if (++elements > limits.max_properties) {
+        throw InputError(source + ": more than " + std::to_string(limits.max_properties) +
+                         " elements in the header");
+      }
+      std::int64_t count = 0;
+      const auto [ptr, ec] =
+          std::from_chars(count_text.data(), count_text.data() + count_text.size(), count);
+      if (ec == std::errc::result_out_of_range) count = std::numeric_limits<std::int64_t>::max();
+      if (ec != std::errc() && ec != std::errc::result_out_of_range) continue;  // PCL says why
+      if (element == "vertex") {
+        CheckLimit(source, "vertices", count, limits.max_points, "--max-points");
+      } else {
+        CheckLimit(source, Excerpt(element) + " elements", count, limits.max_faces, "--max-faces");
+      }
+    } else if (keyword == "property" && ++properties > limits.max_properties) {
+      throw InputError(source + ": element '" + Excerpt(element) + "' has more than " +
+                       std::to_string(limits.max_properties) + " properties");
+    }
+  }
+}
+
 }  // namespace
 
 TriangleMesh ReadPly(const std::filesystem::path& path, const ReadLimits& limits) {
@@ -227,6 +288,7 @@ TriangleMesh ReadPly(const std::filesystem::path& path, const ReadLimits& limits
                      std::to_string(limits.max_file_bytes));
   }
 
+  CheckPlyHeader(s.source, limits);
   Parser parser;
   parser.error_callback([&s](std::size_t line, const std::string& message) {
     if (!s.parser_error) s.parser_error.emplace(line, message);

@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "io/error.h"
+#include "io/read_limits.h"
 
 namespace vb::io::internal {
 
@@ -61,7 +62,7 @@ bool LineScanner::NextLine() {
 double LineScanner::Double(std::size_t i, std::string_view what) const {
   const double value = DoubleOrNonFinite(i, what);
   if (!std::isfinite(value)) {
-    Fail(std::string(what) + ": '" + std::string(tokens_[i]) + "' is not finite");
+    Fail(std::string(what) + ": '" + Excerpt(tokens_[i]) + "' is not finite");
   }
   return value;
 }
@@ -74,7 +75,7 @@ double LineScanner::DoubleOrNonFinite(std::size_t i, std::string_view what) cons
   double value = 0.0;
   const auto [ptr, ec] = std::from_chars(token.data(), token.data() + token.size(), value);
   if (ec != std::errc() || ptr != token.data() + token.size()) {
-    Fail(std::string(what) + ": '" + std::string(token) + "' is not a number");
+    Fail(std::string(what) + ": '" + Excerpt(token) + "' is not a number");
   }
   return value;
 }
@@ -90,7 +91,7 @@ std::int64_t LineScanner::IntFrom(std::string_view text, std::string_view what) 
   std::int64_t value = 0;
   const auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
   if (ec != std::errc() || ptr != text.data() + text.size()) {
-    Fail(std::string(what) + ": '" + std::string(text) + "' is not an integer");
+    Fail(std::string(what) + ": '" + Excerpt(text) + "' is not an integer");
   }
   return value;
 }

@@ -23,8 +23,11 @@ PointCloud ReadXyz(const std::filesystem::path& path, const ReadLimits& limits) 
       scan.Fail("expected " + std::to_string(columns) + " columns like the first point, found " +
                 std::to_string(n));
     }
+    CheckLimit(path.string(), "points", static_cast<std::int64_t>(values.size() / n + 1),
+               limits.max_points, "--max-points");
     for (std::size_t k = 0; k < n; ++k)
-      values.push_back(k < 3 ? scan.Double(k, "coordinate") : scan.DoubleOrNonFinite(k, "normal component"));
+      values.push_back(k < 3 ? scan.Double(k, "coordinate")
+                             : scan.DoubleOrNonFinite(k, "normal component"));
   }
   PointCloud cloud;
   if (columns == 0) return cloud;

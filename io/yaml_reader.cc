@@ -28,7 +28,7 @@ void FindRepeatedKeys(const YAML::Node& node, const std::string& source, const s
     const int line = entry.first.Mark().line + 1;
     const auto [first, inserted] = lines.emplace(name, line);
     if (!inserted) {
-      found->push_back(source + ":" + std::to_string(line) + ": " + path +
+      found->push_back(source + ":" + std::to_string(line) + ": " + Excerpt(path, 80) +
                        ": repeats the key on line " + std::to_string(first->second) +
                        " (which one is meant? remove one)");
     }
@@ -40,6 +40,13 @@ void FindRepeatedKeys(const YAML::Node& node, const std::string& source, const s
 
 YAML::Node YamlReader::LoadFile(const std::filesystem::path& path, const std::string& what) {
   const std::string source = path.string();
+  std::error_code ec;
+  const std::uint64_t bytes = std::filesystem::file_size(path, ec);
+  if (ec) throw InputError(source + ": cannot open " + what + " (" + ec.message() + ")");
+  if (bytes > kMaxYamlBytes) {
+    throw InputError(source + ": " + what + " of " + std::to_string(bytes) +
+                     " bytes, more than the limit of " + std::to_string(kMaxYamlBytes));
+  }
   YAML::Node root;
   try {
     root = YAML::LoadFile(source);
@@ -77,7 +84,8 @@ YAML::Node YamlReader::Child(const YAML::Node& parent, const std::string& name,
 
 double YamlReader::Finite(const YAML::Node& node, const std::string& key) const {
   const double value = Scalar<double>(node, key);
-  if (!std::isfinite(value)) Fail(node, key, "value '" + node.Scalar() + "' is not finite");
+  if (!std::isfinite(value))
+    Fail(node, key, "value '" + Excerpt(node.Scalar()) + "' is not finite");
   return value;
 }
 
@@ -86,18 +94,17 @@ double YamlReader::InRange(const YAML::Node& node, const std::string& key, doubl
   const double value = Finite(node, key);
   if (value < lo || value > hi) {
     std::ostringstream range;
-    range << "value " << node.Scalar() << " is outside [" << lo << ", " << hi << "]";
+    range << "value " << Excerpt(node.Scalar()) << " is outside [" << lo << ", " << hi << "]";
     Fail(node, key, range.str());
   }
   return value;
 }
 
-int YamlReader::IntInRange(const YAML::Node& node, const std::string& key, int lo,
-                           int hi) const {
+int YamlReader::IntInRange(const YAML::Node& node, const std::string& key, int lo, int hi) const {
   const long long value = Scalar<long long>(node, key);
   if (value < lo || value > hi) {
     Fail(node, key,
-         "value " + node.Scalar() + " is outside [" + std::to_string(lo) + ", " +
+         "value " + Excerpt(node.Scalar()) + " is outside [" + std::to_string(lo) + ", " +
              std::to_string(hi) + "]");
   }
   return static_cast<int>(value);
@@ -105,8 +112,7 @@ int YamlReader::IntInRange(const YAML::Node& node, const std::string& key, int l
 
 Eigen::Vector3d YamlReader::Vector3(const YAML::Node& node, const std::string& key) const {
   if (!node.IsSequence() || node.size() != 3) Fail(node, key, "expected a list of 3 numbers");
-  return {Finite(node[0], key + "[0]"), Finite(node[1], key + "[1]"),
-          Finite(node[2], key + "[2]")};
+  return {Finite(node[0], key + "[0]"), Finite(node[1], key + "[1]"), Finite(node[2], key + "[2]")};
 }
 
 Eigen::Isometry3d YamlReader::Isometry(const YAML::Node& node, const std::string& key) const {
@@ -128,7 +134,8 @@ Eigen::Isometry3d YamlReader::Isometry(const YAML::Node& node, const std::string
 void YamlReader::ExpectFormat(const YAML::Node& root, const std::string& format,
                               int version) const {
   const auto found = Scalar<std::string>(Child(root, "format", ""), "format");
-  if (found != format) Fail(root["format"], "format", "is '" + found + "', expected '" + format + "'");
+  if (found != format)
+    Fail(root["format"], "format", "is '" + found + "', expected '" + format + "'");
   const int found_version = Scalar<int>(Child(root, "version", ""), "version");
   if (found_version != version) {
     Fail(root["version"], "version",

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "io/error.h"
+#include "io/read_limits.h"
 
 namespace vb::io {
 
@@ -19,16 +20,16 @@ class YamlReader {
   explicit YamlReader(std::string source) : source_(std::move(source)) {}
 
   /// Parses @p path; @p what names the kind of file in the message ("annotation file").
-  /// @throws InputError when the file cannot be opened, is not valid YAML, or repeats a key
-  ///   within one mapping (each repetition named with both lines, one per line).
+  /// @throws InputError when the file cannot be opened, is larger than kMaxYamlBytes, is not
+  ///   valid YAML, or repeats a key within one mapping (each repetition named with both
+  ///   lines, one per line).
   static YAML::Node LoadFile(const std::filesystem::path& path, const std::string& what);
 
   [[noreturn]] void Fail(const YAML::Node& node, const std::string& key,
                          const std::string& message) const;
 
   /// The child @p name of mapping @p parent (whose own key is @p key).
-  YAML::Node Child(const YAML::Node& parent, const std::string& name,
-                   const std::string& key) const;
+  YAML::Node Child(const YAML::Node& parent, const std::string& name, const std::string& key) const;
 
   template <typename T>
   T Scalar(const YAML::Node& node, const std::string& key) const {
@@ -36,7 +37,7 @@ class YamlReader {
     try {
       return node.as<T>();
     } catch (const YAML::Exception&) {
-      Fail(node, key, "cannot read '" + node.Scalar() + "'");
+      Fail(node, key, "cannot read '" + Excerpt(node.Scalar()) + "'");
     }
   }
 

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "io/error.h"
+#include "io/read_limits.h"
 #include "io/version.h"
 #include "perception/synthetic_set.h"
 #include "tools/bench_command.h"
@@ -25,6 +26,21 @@ int main(int argc, char** argv) {
       "written); 2 the command line or an input file is wrong (the message names it); 3 the "
       "work did not succeed (capture: no frame set; morph: the target could not be morphed; "
       "lcm-listen: messages missing, invalid or malformed).");
+
+  // Limits on the mesh and cloud files read (io/read_limits.h), raised for offline work on
+  // large scans: vbutcher --max-points 20000000 morph ...
+  vb::io::ReadLimits limits;
+  std::uint64_t max_file_mib = limits.max_file_bytes >> 20;
+  app.add_option("--max-points", limits.max_points,
+                 "Most vertices or points a mesh or cloud file may hold")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  app.add_option("--max-faces", limits.max_faces, "Most faces a mesh file may hold")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  app.add_option("--max-file-mib", max_file_mib, "Largest mesh or cloud file read, MiB")
+      ->capture_default_str()
+      ->check(CLI::Range(std::uint64_t{1}, std::uint64_t{1} << 20));
 
   vb::perception::SyntheticSetOptions synth;
   CLI::App* synth_cmd = app.add_subcommand("synth",
@@ -324,6 +340,8 @@ int main(int argc, char** argv) {
     app.exit(e);  // prints what is wrong
     return 2;
   }
+  limits.max_file_bytes = max_file_mib << 20;
+  vb::io::SetDefaultReadLimits(limits);
   try {
     if (synth_cmd->parsed()) {
       synth.arbitrary_orientation = !upright;

@@ -52,8 +52,10 @@ TEST(OffTest, RejectsBadContentNamingFileAndLine) {
   ExpectRejected(dir.Write("magic.off", "PLY\n"), {"magic.off:1", "'OFF'"});
   ExpectRejected(dir.Write("short_face.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1\n"),
                  {"short_face.off:6", "missing vertex index"});
-  ExpectRejected(dir.Write("huge.off", "OFF\n1000000000000 1 0\n0 0 0\n"),
-                 {"huge.off:2", "1000000000000"});
+  ExpectRejected(dir.Write("huge.off", "OFF\n4000000 1 0\n0 0 0\n"),
+                 {"huge.off:2", "4000000 vertices", "do not fit"});
+  ExpectRejected(dir.Write("over.off", "OFF\n1000000000000 1 0\n0 0 0\n"),
+                 {"over.off", "1000000000000 vertices", "limit of 5000000"});
   ExpectRejected(dir.Write("neg.off", "OFF\n-3 1 0\n"), {"neg.off:2"});
   ExpectRejected(dir.Write("coord.off", "OFF\n3 1 0\n0 0 0\n1 x 0\n0 1 0\n3 0 1 2\n"),
                  {"coord.off:4", "'x'"});

@@ -68,9 +68,15 @@ TEST(PlyTest, RejectsHeaderClaimingMoreVerticesThanTheFileHolds) {
   test::TempDir dir;
   const auto file = dir.Write(
       "huge.ply",
+      "ply\nformat binary_little_endian 1.0\nelement vertex 4000000\nproperty float x\n"
+      "property float y\nproperty float z\nend_header\n\x01\x02");
+  ExpectRejected(file, {"huge.ply", "4000000 vertex elements", "the file has"});
+  // Over the vertex limit, refused before the file's size is even compared.
+  const auto over = dir.Write(
+      "over.ply",
       "ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000\nproperty float x\n"
       "property float y\nproperty float z\nend_header\n\x01\x02");
-  ExpectRejected(file, {"huge.ply", "1000000000000", "vertex"});
+  ExpectRejected(over, {"over.ply", "1000000000000 vertices", "limit of 5000000"});
 }
 
 TEST(PlyTest, RejectsTruncatedBinaryNamingTheElement) {
