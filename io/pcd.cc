@@ -1,11 +1,13 @@
 #include "io/pcd.h"
 
 #include <pcl/PCLPointCloud2.h>
+#include <pcl/common/io.h>
 #include <pcl/conversions.h>
 #include <pcl/io/pcd_io.h>
 #include <pcl/point_types.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -14,78 +16,156 @@
 
 #include "io/error.h"
 #include "io/read_limits.h"
+#include "io/text_scanner.h"
 
 namespace vb::io {
 namespace {
 
-// PCL's readHeader already sizes the point buffer from WIDTH x HEIGHT, and its compressed
-// reader allocates what the body's first word claims, so a lying header must be caught before
-// PCL sees the file. This reads only the header's few keywords and, for binary_compressed
-// data, the two sizes that open the body.
-void CheckHeaderAgainstFileSize(const std::filesystem::path& path, std::uint64_t file_bytes,
-                                const ReadLimits& limits) {
+// A PCD header, read and checked here in full before PCL sees the file: PCL 1.13 sizes its
+// buffers from WIDTH x HEIGHT, allocates what a compressed body's first word claims, and its
+// ASCII reader writes past its buffer when FIELDS, SIZE, TYPE and COUNT disagree (valgrind,
+// on inputs the mesh_read fuzz target found; tests/fuzz/regressions/mesh_read).
+struct PcdHeader {
+  struct Field {
+    std::string name;
+    std::uint64_t size = 0;
+    char type = 0;
+    std::uint64_t count = 1;
+  };
+  std::vector<Field> fields;
+  std::uint64_t width = 0, height = 1, points = 0, point_step = 0;
+  std::string data;
+  std::uint64_t header_bytes = 0;  // up to and including the DATA line
+};
+
+std::uint64_t Unsigned(const std::string& source, const std::string& key, const std::string& text) {
+  std::uint64_t value = 0;
+  const auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (ec != std::errc() || ptr != text.data() + text.size() || value > (std::uint64_t{1} << 32)) {
+    throw InputError(source + ": PCD " + key + ": '" + Excerpt(text) +
+                     "' is not a whole number up to 2^32");
+  }
+  return value;
+}
+
+PcdHeader ReadHeader(const std::filesystem::path& path, std::uint64_t file_bytes,
+                     const ReadLimits& limits) {
   const std::string source = path.string();
   std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(source + ": cannot open for reading");
+  PcdHeader h;
+  std::vector<std::string> names, sizes, types, counts;
+  std::vector<std::string> seen;
+  bool has_points = false, has_height = false;
   std::string line;
-  std::uint64_t width = 0, height = 1, point_step = 0, header_bytes = 0;
-  std::vector<std::uint64_t> sizes, counts;
-  std::string data;
-  int lines = 0;
-  auto numbers = [&](std::istringstream& fields, std::vector<std::uint64_t>* out) {
-    std::uint64_t value = 0;
-    while (fields >> value) out->push_back(value);
-  };
-  while (data.empty() && std::getline(in, line) && ++lines <= 64 && line.size() < 4096) {
-    header_bytes += line.size() + 1;
-    std::istringstream fields(line);
+  for (int lines = 0; h.data.empty(); ++lines) {
+    if (lines >= 64 || !std::getline(in, line) || line.size() >= 4096) {
+      throw InputError(source + ": malformed PCD header (no DATA line in the first 64 lines of " +
+                       "under 4096 characters)");
+    }
+    h.header_bytes += line.size() + 1;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::istringstream words(line);
     std::string key;
-    fields >> key;
-    if (key == "WIDTH") fields >> width;
-    if (key == "HEIGHT") fields >> height;
-    if (key == "SIZE") numbers(fields, &sizes);
-    if (key == "COUNT") numbers(fields, &counts);
-    if (key == "DATA") fields >> data;
+    if (!(words >> key) || key[0] == '#') continue;
+    if (std::find(seen.begin(), seen.end(), key) != seen.end()) {
+      throw InputError(source + ": PCD header repeats " + Excerpt(key));
+    }
+    seen.push_back(key);
+    std::vector<std::string> values;
+    for (std::string w; words >> w;) values.push_back(w);
+    if (key == "VERSION" || key == "VIEWPOINT") continue;
+    if (key == "FIELDS" || key == "COLUMNS") {
+      names = values;
+    } else if (key == "SIZE") {
+      sizes = values;
+    } else if (key == "TYPE") {
+      types = values;
+    } else if (key == "COUNT") {
+      counts = values;
+    } else if ((key == "WIDTH" || key == "HEIGHT" || key == "POINTS") && values.size() == 1) {
+      const std::uint64_t v = Unsigned(source, key, values[0]);
+      if (key == "WIDTH") h.width = v;
+      if (key == "HEIGHT") h.height = v, has_height = true;
+      if (key == "POINTS") h.points = v, has_points = true;
+    } else if (key == "DATA" && values.size() == 1 &&
+               (values[0] == "ascii" || values[0] == "binary" ||
+                values[0] == "binary_compressed")) {
+      h.data = values[0];
+    } else {
+      throw InputError(source + ": PCD header line '" + Excerpt(line) + "' is not understood");
+    }
   }
-  if (data.empty())
-    throw InputError(source + ": malformed PCD header (no DATA line in the first 64 lines)");
-  if (header_bytes > limits.max_header_bytes) {
-    throw InputError(source + ": PCD header of " + std::to_string(header_bytes) +
+  if (h.header_bytes > limits.max_header_bytes) {
+    throw InputError(source + ": PCD header of " + std::to_string(h.header_bytes) +
                      " bytes, more than the limit of " + std::to_string(limits.max_header_bytes));
   }
-  if (sizes.size() > static_cast<std::size_t>(limits.max_properties)) {
-    throw InputError(source + ": " + std::to_string(sizes.size()) +
+  if (names.empty() || sizes.size() != names.size() || types.size() != names.size() ||
+      (!counts.empty() && counts.size() != names.size())) {
+    throw InputError(source + ": PCD header has " + std::to_string(names.size()) + " FIELDS, " +
+                     std::to_string(sizes.size()) + " SIZE, " + std::to_string(types.size()) +
+                     " TYPE and " + std::to_string(counts.size()) + " COUNT entries");
+  }
+  if (names.size() > static_cast<std::size_t>(limits.max_properties)) {
+    throw InputError(source + ": " + std::to_string(names.size()) +
                      " fields, more than the limit of " + std::to_string(limits.max_properties));
   }
-  for (std::size_t i = 0; i < sizes.size(); ++i) {
-    const std::uint64_t count = i < counts.size() ? counts[i] : 1;
-    if (sizes[i] > 8 || count > 1024)
-      throw InputError(source + ": PCD field " + std::to_string(i) +
-                       " has an implausible SIZE or COUNT");
-    point_step += sizes[i] * count;
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    PcdHeader::Field f;
+    f.name = names[i];
+    f.size = Unsigned(source, "SIZE", sizes[i]);
+    f.type = types[i].size() == 1 ? types[i][0] : '?';
+    f.count = counts.empty() ? 1 : Unsigned(source, "COUNT", counts[i]);
+    const bool size_ok = f.type == 'F' ? (f.size == 4 || f.size == 8)
+                                       : (f.size == 1 || f.size == 2 || f.size == 4 || f.size == 8);
+    if ((f.type != 'F' && f.type != 'I' && f.type != 'U') || !size_ok || f.count < 1 ||
+        f.count > 1024) {
+      throw InputError(source + ": PCD field '" + Excerpt(f.name) + "': SIZE " + Excerpt(sizes[i]) +
+                       " TYPE " + Excerpt(types[i]) + " COUNT " +
+                       (counts.empty() ? "1" : Excerpt(counts[i])) + " is not a PCD field");
+    }
+    for (const PcdHeader::Field& other : h.fields) {
+      if (other.name == f.name)
+        throw InputError(source + ": PCD field '" + Excerpt(f.name) + "' repeats");
+    }
+    h.point_step += f.size * f.count;
+    h.fields.push_back(f);
   }
-  if (width > (std::uint64_t{1} << 32) || height > (std::uint64_t{1} << 32)) {
-    throw InputError(source + ": PCD WIDTH or HEIGHT is implausibly large");
+  for (const char* name : {"x", "y", "z"}) {
+    const auto f = std::find_if(h.fields.begin(), h.fields.end(),
+                                [name](const PcdHeader::Field& g) { return g.name == name; });
+    if (f == h.fields.end() || f->type != 'F' || f->size != 4 || f->count != 1) {
+      throw InputError(source + ": PCD field " + name +
+                       " is missing or not one float (SIZE 4, TYPE F)");
+    }
   }
-  const std::uint64_t points = width * height;
+  if (!has_height) h.height = 1;
+  const std::uint64_t points = h.width * h.height;
+  if (has_points && h.points != points) {
+    throw InputError(source + ": PCD POINTS " + std::to_string(h.points) +
+                     " is not WIDTH x HEIGHT " + std::to_string(points));
+  }
+  h.points = points;
   CheckLimit(source, "points", static_cast<std::int64_t>(points), limits.max_points,
              "--max-points");
-  const std::uint64_t body = file_bytes - std::min(header_bytes, file_bytes);
+  const std::uint64_t body = file_bytes - std::min(h.header_bytes, file_bytes);
   // ascii: at least two characters per value; binary: exact; compressed: LZF expands at most
   // about 100 times, so 256 is a safe ceiling.
-  const std::uint64_t capacity =
-      data == "ascii"    ? body / (2 * std::max<std::size_t>(sizes.size(), 1))
-      : data == "binary" ? body / std::max<std::uint64_t>(point_step, 1)
-                         : 256 * body / std::max<std::uint64_t>(point_step, 1);
+  std::uint64_t values_per_point = 0;
+  for (const PcdHeader::Field& f : h.fields) values_per_point += f.count;
+  const std::uint64_t capacity = h.data == "ascii"    ? body / (2 * values_per_point)
+                                 : h.data == "binary" ? body / h.point_step
+                                                      : 256 * body / h.point_step;
   if (points > capacity) {
     throw InputError(source + ": header declares " + std::to_string(points) +
                      " points, more than a file of " + std::to_string(file_bytes) +
                      " bytes can hold");
   }
-  if (data == "binary_compressed") {
+  if (h.data == "binary_compressed") {
     // The body opens with the compressed and the uncompressed size (two little-endian 32-bit
     // words); PCL allocates the second before it decompresses.
     in.clear();
-    in.seekg(static_cast<std::streamoff>(header_bytes));
+    in.seekg(static_cast<std::streamoff>(h.header_bytes));
     unsigned char words[8] = {};
     if (body < 8 || !in.read(reinterpret_cast<char*>(words), 8)) {
       throw InputError(source + ": binary_compressed body too short for its sizes");
@@ -99,18 +179,105 @@ void CheckHeaderAgainstFileSize(const std::filesystem::path& path, std::uint64_t
       throw InputError(source + ": binary_compressed body claims " + std::to_string(compressed) +
                        " compressed bytes, but holds " + std::to_string(body - 8));
     }
-    if (uncompressed != points * point_step) {
+    if (uncompressed != points * h.point_step) {
       throw InputError(source + ": binary_compressed body claims " + std::to_string(uncompressed) +
                        " bytes uncompressed, but " + std::to_string(points) + " points of " +
-                       std::to_string(point_step) + " bytes are " +
-                       std::to_string(points * point_step));
+                       std::to_string(h.point_step) + " bytes are " +
+                       std::to_string(points * h.point_step));
     }
   }
+  return h;
+}
+
+// The ASCII body, read here rather than by PCL (see PcdHeader): one line per point, every
+// field's values in order.
+PointCloud ReadAsciiBody(const std::filesystem::path& path, const PcdHeader& h,
+                         const ReadLimits& limits) {
+  const std::string text = internal::ReadFileBounded(path, limits.max_file_bytes);
+  internal::LineScanner scan(std::string_view(text).substr(h.header_bytes), path.string());
+  std::size_t values = 0;
+  for (const PcdHeader::Field& f : h.fields) values += f.count;
+  // The token of a field's first value on a point's line; -1 when the field is absent.
+  auto column = [&h](const char* name) {
+    std::size_t at = 0;
+    for (const PcdHeader::Field& f : h.fields) {
+      if (f.name == name) return static_cast<int>(at);
+      at += f.count;
+    }
+    return -1;
+  };
+  const int x = column("x"), y = column("y"), z = column("z");
+  const int nx = column("normal_x"), ny = column("normal_y"), nz = column("normal_z");
+  const bool with_normals = nx >= 0 && ny >= 0 && nz >= 0;
+  PointCloud cloud;
+  const auto n = static_cast<Eigen::Index>(h.points);
+  cloud.points.resize(3, n);
+  if (with_normals) cloud.normals.resize(3, n);
+  Eigen::Index kept = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (!scan.NextLine()) {
+      scan.Fail("the body ends after " + std::to_string(i) + " of " + std::to_string(n) +
+                " points");
+    }
+    if (scan.tokens().size() != values) {
+      scan.Fail("point " + std::to_string(i) + " has " + std::to_string(scan.tokens().size()) +
+                " values, the header declares " + std::to_string(values));
+    }
+    const Eigen::Vector3d p(scan.DoubleOrNonFinite(static_cast<std::size_t>(x), "x"),
+                            scan.DoubleOrNonFinite(static_cast<std::size_t>(y), "y"),
+                            scan.DoubleOrNonFinite(static_cast<std::size_t>(z), "z"));
+    if (!p.allFinite()) continue;
+    cloud.points.col(kept) = p;
+    if (with_normals) {
+      cloud.normals.col(kept) =
+          Eigen::Vector3d(scan.DoubleOrNonFinite(static_cast<std::size_t>(nx), "normal_x"),
+                          scan.DoubleOrNonFinite(static_cast<std::size_t>(ny), "normal_y"),
+                          scan.DoubleOrNonFinite(static_cast<std::size_t>(nz), "normal_z"));
+    }
+    ++kept;
+  }
+  cloud.points.conservativeResize(3, kept);
+  if (with_normals) cloud.normals.conservativeResize(3, kept);
+  return cloud;
 }
 
 bool HasField(const pcl::PCLPointCloud2& blob, const char* name) {
   return std::any_of(blob.fields.begin(), blob.fields.end(),
                      [name](const pcl::PCLPointField& f) { return f.name == name; });
+}
+
+// True when @p name is one 4-byte float per point, as pcl::PointXYZ and pcl::Normal map it.
+bool IsFloatField(const pcl::PCLPointCloud2& blob, const char* name) {
+  return std::any_of(blob.fields.begin(), blob.fields.end(), [name](const pcl::PCLPointField& f) {
+    return f.name == name && f.datatype == pcl::PCLPointField::FLOAT32 && f.count == 1;
+  });
+}
+
+// What PCL read must be what its header declared before pcl::fromPCLPointCloud2 indexes into
+// it: PCL accepts a header with a garbled SIZE line and then reads no data.
+void CheckBlob(const std::string& source, const pcl::PCLPointCloud2& blob) {
+  const std::uint64_t expected =
+      std::uint64_t{blob.width} * blob.height * std::uint64_t{blob.point_step};
+  if (blob.point_step == 0 || blob.data.size() != expected) {
+    throw InputError(source + ": PCD body of " + std::to_string(blob.data.size()) +
+                     " bytes, where the header declares " + std::to_string(blob.width) + " x " +
+                     std::to_string(blob.height) + " points of " + std::to_string(blob.point_step) +
+                     " bytes");
+  }
+  for (const pcl::PCLPointField& f : blob.fields) {
+    const std::uint64_t bytes = static_cast<std::uint64_t>(pcl::getFieldSize(f.datatype)) *
+                                std::max<std::uint64_t>(f.count, 1);
+    if (bytes == 0 || std::uint64_t{f.offset} + bytes > blob.point_step) {
+      throw InputError(source + ": PCD field '" + Excerpt(f.name) +
+                       "' does not fit in a point of " + std::to_string(blob.point_step) +
+                       " bytes");
+    }
+  }
+  for (const char* name : {"x", "y", "z"}) {
+    if (!IsFloatField(blob, name)) {
+      throw InputError(source + ": PCD field " + name + " is not one float (SIZE 4, TYPE F)");
+    }
+  }
 }
 
 }  // namespace
@@ -125,7 +292,8 @@ PointCloud ReadPcd(const std::filesystem::path& path, const ReadLimits& limits) 
     throw InputError(source + ": file size is unreadable or above the limit of " +
                      std::to_string(limits.max_file_bytes));
   }
-  CheckHeaderAgainstFileSize(path, file_bytes, limits);
+  const PcdHeader header = ReadHeader(path, file_bytes, limits);
+  if (header.data == "ascii") return ReadAsciiBody(path, header, limits);
   pcl::PCDReader reader;
   pcl::PCLPointCloud2 blob;
   Eigen::Vector4f origin;
@@ -133,17 +301,27 @@ PointCloud ReadPcd(const std::filesystem::path& path, const ReadLimits& limits) 
   int version = 0;
   int data_type = 0;
   unsigned int data_index = 0;
-  if (reader.readHeader(source, blob, origin, orientation, version, data_type, data_index) < 0) {
-    throw InputError(source + ": malformed PCD header");
+  // PCL throws (std::out_of_range, pcl::PCLException) on some inconsistent headers.
+  try {
+    if (reader.readHeader(source, blob, origin, orientation, version, data_type, data_index) < 0) {
+      throw InputError(source + ": malformed PCD header");
+    }
+    if (!HasField(blob, "x") || !HasField(blob, "y") || !HasField(blob, "z")) {
+      throw InputError(source + ": PCD header lacks field x, y or z");
+    }
+    if (reader.read(source, blob) < 0) throw InputError(source + ": malformed PCD body");
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw InputError(source + ": malformed PCD file (" + Excerpt(e.what(), 120) + ")");
   }
-  if (!HasField(blob, "x") || !HasField(blob, "y") || !HasField(blob, "z")) {
-    throw InputError(source + ": PCD header lacks field x, y or z");
-  }
-  if (reader.read(source, blob) < 0) throw InputError(source + ": malformed PCD body");
+  CheckBlob(source, blob);
+  // No points: PCL's conversion would index into an empty cloud. ReadCloud names the file.
+  if (blob.data.empty()) return PointCloud{};
   pcl::PointCloud<pcl::PointXYZ> xyz;
   pcl::fromPCLPointCloud2(blob, xyz);
-  const bool with_normals =
-      HasField(blob, "normal_x") && HasField(blob, "normal_y") && HasField(blob, "normal_z");
+  const bool with_normals = IsFloatField(blob, "normal_x") && IsFloatField(blob, "normal_y") &&
+                            IsFloatField(blob, "normal_z");
   pcl::PointCloud<pcl::Normal> normals;
   if (with_normals) pcl::fromPCLPointCloud2(blob, normals);
 

@@ -60,8 +60,9 @@ vbutcher::cut_lines_t ReadCuts(const std::filesystem::path& path) {
 }
 
 // Every message on the daemon's channels, decoded here (not by LCM's typed subscription), so a
-// malformed one is counted and reported instead of ending the program: LCM 1.3.1's generated
-// decoders throw (std::length_error, std::bad_alloc) on a negative or huge array length.
+// malformed one is counted and reported instead of ending the program. LCM 1.3.1's generated
+// decoders threw (std::length_error) on a negative length; io/lcm/harden-generated makes them
+// return -1 instead, and the catch stays for whatever another lcm-gen does.
 struct Listener {
   const LcmListenOptions* options;
   int received = 0, invalid = 0, out_of_order = 0, malformed = 0, statuses = 0, diagnostics = 0;
