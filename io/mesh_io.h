@@ -28,13 +28,15 @@ std::string DropInvalidNormals(const std::string& source, Eigen::Matrix3Xd* norm
 /// DropInvalidNormals; a warning goes to @p warnings, or to stderr when it is null.
 /// @throws InputError naming the file (and line or element) on bad content, on a format that
 ///   holds no faces (PCD, XYZ), or on a file with no faces.
-TriangleMesh ReadMesh(const std::filesystem::path& path, const ReadLimits& limits = DefaultReadLimits(),
+TriangleMesh ReadMesh(const std::filesystem::path& path,
+                      const ReadLimits& limits = DefaultReadLimits(),
                       std::vector<std::string>* warnings = nullptr);
 
 /// Reads a point cloud from any supported format; a mesh's vertices become the points. Its
 /// normals pass DropInvalidNormals, as ReadMesh.
 /// @throws InputError as ReadMesh, or when the cloud is empty.
-PointCloud ReadCloud(const std::filesystem::path& path, const ReadLimits& limits = DefaultReadLimits(),
+PointCloud ReadCloud(const std::filesystem::path& path,
+                     const ReadLimits& limits = DefaultReadLimits(),
                      std::vector<std::string>* warnings = nullptr);
 
 struct WriteOptions {

@@ -241,11 +241,6 @@ PointCloud ReadAsciiBody(const std::filesystem::path& path, const PcdHeader& h,
   return cloud;
 }
 
-bool HasField(const pcl::PCLPointCloud2& blob, const char* name) {
-  return std::any_of(blob.fields.begin(), blob.fields.end(),
-                     [name](const pcl::PCLPointField& f) { return f.name == name; });
-}
-
 // True when @p name is one 4-byte float per point, as pcl::PointXYZ and pcl::Normal map it.
 bool IsFloatField(const pcl::PCLPointCloud2& blob, const char* name) {
   return std::any_of(blob.fields.begin(), blob.fields.end(), [name](const pcl::PCLPointField& f) {
@@ -305,9 +300,6 @@ PointCloud ReadPcd(const std::filesystem::path& path, const ReadLimits& limits) 
   try {
     if (reader.readHeader(source, blob, origin, orientation, version, data_type, data_index) < 0) {
       throw InputError(source + ": malformed PCD header");
-    }
-    if (!HasField(blob, "x") || !HasField(blob, "y") || !HasField(blob, "z")) {
-      throw InputError(source + ": PCD header lacks field x, y or z");
     }
     if (reader.read(source, blob) < 0) throw InputError(source + ": malformed PCD body");
   } catch (const InputError&) {

@@ -19,7 +19,8 @@ enum class PlyEncoding { kAscii, kBinaryLittleEndian };
 ///   non-finite coordinates or out-of-range indices.
 /// @note In ascii files, PCL's parser reads an unparseable integer token as 0; unparseable
 ///   coordinates become NaN and are rejected.
-TriangleMesh ReadPly(const std::filesystem::path& path, const ReadLimits& limits = DefaultReadLimits());
+TriangleMesh ReadPly(const std::filesystem::path& path,
+                     const ReadLimits& limits = DefaultReadLimits());
 
 /// Writes @p mesh as PLY with double-precision coordinates (exact round trip), normals when
 /// the mesh has them, and faces when it has any.

@@ -1,45 +1,24 @@
 // libFuzzer target: the mesh and cloud readers (PLY, OFF, OBJ, PCD, xyz). The first byte picks
 // the format, the rest is the file. Every refusal must be an InputError; anything else thrown,
 // a crash, a leak or a read past the limits is a finding. Run with scripts/fuzz.
-#include <unistd.h>
-
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <string>
 
 #include "io/error.h"
 #include "io/mesh_io.h"
-
-namespace {
-
-// One folder per fuzzing process, removed at exit.
-// Never destroyed, so that the exit handler that removes it can still read it.
-const std::filesystem::path& Folder() {
-  static const std::filesystem::path& folder = *new std::filesystem::path([] {
-    const std::filesystem::path f =
-        std::filesystem::temp_directory_path() / ("vb_mesh_fuzz_" + std::to_string(getpid()));
-    std::filesystem::create_directories(f);
-    std::atexit([] { std::filesystem::remove_all(Folder()); });
-    return f;
-  }());
-  return folder;
-}
-
-}  // namespace
+#include "tests/support/temp_dir.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size < 1) return 0;
   static constexpr const char* kExtensions[] = {".ply", ".off", ".obj", ".pcd", ".xyz"};
   const std::string extension = kExtensions[data[0] % 5];
-  const std::filesystem::path path = Folder() / ("input" + extension);
-  {
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
-    out.write(reinterpret_cast<const char*>(data + 1), static_cast<std::streamsize>(size - 1));
-  }
+  static const vb::test::TempDir dir;  // removed at exit
+  const std::filesystem::path path = dir.Write(
+      "input" + extension, std::string(reinterpret_cast<const char*>(data + 1), size - 1));
   // Small limits, so that the fuzzer spends its time on structure, not on big counts.
   vb::io::ReadLimits limits;
   limits.max_points = 20000;

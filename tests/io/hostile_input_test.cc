@@ -76,11 +76,6 @@ Outcome InChild(const std::function<void()>& reader) {
   return out;
 }
 
-void WriteText(const std::filesystem::path& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  out << text;
-}
-
 // What every refusal here may cost: measured 1.4 to 2.1 MiB (2.7 to 7.8 MiB in the
 // AddressSanitizer build, its shadow and quarantine), mostly the pages the child touches once
 // it runs; the hostile claims were gigabytes.
@@ -97,7 +92,7 @@ TEST(HostileInputTest, CompressedPcdClaimingGigabytesIsRefusedBeforeAllocation) 
   std::string body(24, '\0');
   const std::uint32_t sizes[2] = {16, 0xFFFFFFF0u};
   std::memcpy(body.data(), sizes, 8);
-  WriteText(dir / "huge.pcd",
+  dir.Write("huge.pcd",
             "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
             "WIDTH 10\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 10\nDATA binary_compressed\n" +
                 body);
@@ -139,18 +134,18 @@ TEST(HostileInputTest, InconsistentPcdHeadersAreRefusedNamingTheLine) {
     text.append("WIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA ascii\n0 0 0\n1 1 1\n");
     return text;
   };
-  WriteText(dir / "sizes.pcd", pcd("FIELDS x y z normal_x\nSIZE 4 4 4\nTYPE F F F F\n"));
+  dir.Write("sizes.pcd", pcd("FIELDS x y z normal_x\nSIZE 4 4 4\nTYPE F F F F\n"));
   EXPECT_THAT([&] { ReadCloud(dir / "sizes.pcd"); },
               ::testing::ThrowsMessage<InputError>(AllOf(
                   HasSubstr("sizes.pcd"), HasSubstr("4 FIELDS, 3 SIZE, 4 TYPE and 0 COUNT"))));
-  WriteText(dir / "twice.pcd", pcd("FIELDS x y z\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n"));
+  dir.Write("twice.pcd", pcd("FIELDS x y z\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n"));
   EXPECT_THAT(
       [&] { ReadCloud(dir / "twice.pcd"); },
       ::testing::ThrowsMessage<InputError>(HasSubstr("twice.pcd: PCD header repeats FIELDS")));
-  WriteText(dir / "count.pcd", pcd("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 0 1\n"));
+  dir.Write("count.pcd", pcd("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 0 1\n"));
   EXPECT_THAT([&] { ReadCloud(dir / "count.pcd"); },
               ::testing::ThrowsMessage<InputError>(HasSubstr("field 'y': SIZE 4 TYPE F COUNT 0")));
-  WriteText(dir / "short.pcd",
+  dir.Write("short.pcd",
             "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 2\nPOINTS 2\nDATA ascii\n"
             "0 0 0\n1.00000 1.00000\n");
   EXPECT_THAT([&] { ReadCloud(dir / "short.pcd"); },
@@ -160,7 +155,7 @@ TEST(HostileInputTest, InconsistentPcdHeadersAreRefusedNamingTheLine) {
 
 TEST(HostileInputTest, AsciiPcdReadsValuesNormalsAndDropsInvalidPoints) {
   test::TempDir dir;
-  WriteText(dir / "ok.pcd",
+  dir.Write("ok.pcd",
             "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z rgb normal_x normal_y normal_z\n"
             "SIZE 4 4 4 4 4 4 4\nTYPE F F F U F F F\nCOUNT 1 1 1 1 1 1 1\nWIDTH 3\nHEIGHT 1\n"
             "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n"
@@ -179,7 +174,7 @@ TEST(HostileInputTest, PlyOfTenMillionPointsIsRefusedAtTheHeader) {
   const std::string header =
       "ply\nformat binary_little_endian 1.0\nelement vertex 10000000\n"
       "property float x\nproperty float y\nproperty float z\nend_header\n";
-  WriteText(dir / "big.ply", header);
+  dir.Write("big.ply", header);
   std::filesystem::resize_file(dir / "big.ply", header.size() + 120'000'000);
   const Outcome out = InChild([&] { ReadCloud(dir / "big.ply"); });
   EXPECT_THAT(out.error, AllOf(HasSubstr("big.ply"), HasSubstr("10000000 vertices"),
@@ -192,7 +187,7 @@ TEST(HostileInputTest, PlyHeaderOfManyPropertiesIsRefusedQuickly) {
   // 200,000 properties took 43 s in PCL's parser: past the header limit now.
   std::string huge = "ply\nformat ascii 1.0\nelement vertex 1\n";
   for (int i = 0; i < 200000; ++i) huge += "property float p" + std::to_string(i) + "\n";
-  WriteText(dir / "huge_header.ply", huge + "end_header\n");
+  dir.Write("huge_header.ply", huge + "end_header\n");
   Outcome out = InChild([&] { ReadCloud(dir / "huge_header.ply"); });
   EXPECT_THAT(out.error, AllOf(HasSubstr("huge_header.ply"), HasSubstr("no end_header line"),
                                HasSubstr("at most 65536")));
@@ -200,7 +195,7 @@ TEST(HostileInputTest, PlyHeaderOfManyPropertiesIsRefusedQuickly) {
   // Within the header's size, still more properties than an element may have.
   std::string many = "ply\nformat ascii 1.0\nelement vertex 1\n";
   for (int i = 0; i < 65; ++i) many += "property float p" + std::to_string(i) + "\n";
-  WriteText(dir / "many.ply", many + "end_header\n");
+  dir.Write("many.ply", many + "end_header\n");
   out = InChild([&] { ReadCloud(dir / "many.ply"); });
   EXPECT_THAT(out.error,
               AllOf(HasSubstr("many.ply"), HasSubstr("'vertex' has more than 64 properties")));
@@ -226,7 +221,7 @@ TEST(HostileInputTest, PlyPolygonsSplitIntoTooManyTrianglesAreRefused) {
   }
   text.append("1000");
   for (int i = 0; i < 1000; ++i) text.append(" ").append(std::to_string(i));
-  WriteText(dir / "fan.ply", text + "\n");
+  dir.Write("fan.ply", text + "\n");
   limits.max_faces = 500;
   EXPECT_THAT([&] { ReadMesh(dir / "fan.ply", limits); },
               ::testing::ThrowsMessage<InputError>(
@@ -249,7 +244,7 @@ TEST(HostileInputTest, HugeAnnotationsAreRefusedBeforeParsing) {
 
 TEST(HostileInputTest, ALongBadTokenIsQuotedShort) {
   test::TempDir dir;
-  WriteText(dir / "long.off",
+  dir.Write("long.off",
             "OFF\n3 1 0\n" + std::string(50'000'000, 'x') + " 0 0\n0 1 0\n0 0 1\n3 0 1 2\n");
   const Outcome out = InChild([&] { ReadMesh(dir / "long.off"); });
   EXPECT_THAT(out.error, AllOf(HasSubstr("long.off:3: vertex coordinate: 'xxxx"),
@@ -265,7 +260,7 @@ TEST(HostileInputTest, TextFormatsCountAgainstTheLimits) {
   ReadLimits limits;
   limits.max_points = 100;
   limits.max_faces = 100;
-  WriteText(dir / "counts.off", "OFF\n101 0 0\n" + std::string(101 * 6, ' ') + "\n");
+  dir.Write("counts.off", "OFF\n101 0 0\n" + std::string(101 * 6, ' ') + "\n");
   EXPECT_THAT([&] { ReadMesh(dir / "counts.off", limits); },
               ::testing::ThrowsMessage<InputError>(
                   AllOf(HasSubstr("counts.off: 101 vertices, more than the limit of 100"))));
@@ -274,8 +269,8 @@ TEST(HostileInputTest, TextFormatsCountAgainstTheLimits) {
     obj += "v 0 0 " + std::to_string(i) + "\n";
     xyz += "0 0 " + std::to_string(i) + "\n";
   }
-  WriteText(dir / "many.obj", obj);
-  WriteText(dir / "many.xyz", xyz);
+  dir.Write("many.obj", obj);
+  dir.Write("many.xyz", xyz);
   EXPECT_THAT([&] { ReadCloud(dir / "many.obj", limits); },
               ::testing::ThrowsMessage<InputError>(
                   HasSubstr("many.obj: 101 vertices, more than the limit of 100")));
@@ -291,7 +286,7 @@ TEST(HostileInputTest, DefaultLimitsCanBeRaisedForOfflineWork) {
   test::TempDir dir;
   std::string xyz;
   for (int i = 0; i < 20; ++i) xyz += "0 0 " + std::to_string(i) + "\n";
-  WriteText(dir / "c.xyz", xyz);
+  dir.Write("c.xyz", xyz);
   const ReadLimits saved = DefaultReadLimits();
   ReadLimits small = saved;
   small.max_points = 10;
