@@ -8,6 +8,7 @@
 #include <functional>
 
 #include "io/error.h"
+#include "io/oni_file.h"
 #include "io/yaml_reader.h"
 
 namespace vb::daemon {
@@ -215,7 +216,7 @@ bool UsesVirtualCameras(const DaemonConfig& config) {
   for (const perception::CameraCalibration& camera : config.rig.cameras) {
     const std::string& uri = camera.uri;
     if (uri.rfind("vbrig://", 0) == 0) return true;
-    if (uri.size() >= 4 && uri.compare(uri.size() - 4, 4, ".oni") == 0) return true;
+    if (io::IsOniUri(uri)) return true;
   }
   return false;
 }
@@ -267,6 +268,11 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
       r.Fail(n, "rig", "no file " + c.rig_path.string());
     c.rig = perception::LoadRigCalibration(c.rig_path);
   });
+  // Recordings are checked here, before OpenNI2's player trusts them.
+  for (const perception::CameraCalibration& camera : c.rig.cameras) {
+    if (io::IsOniUri(camera.uri))
+      problems.Try([&] { (void)io::CheckOniFile(camera.uri); });
+  }
   if (const YAML::Node n = root["virtual_scene"]) {
     problems.Try([&] {
       const std::filesystem::path p(r.Scalar<std::string>(n, "virtual_scene"));

@@ -11,6 +11,9 @@
 #include <mutex>
 #include <stdexcept>
 
+#include "io/error.h"
+#include "io/oni_file.h"
+
 namespace vb::perception {
 namespace {
 
@@ -99,6 +102,9 @@ struct RigCapture::Camera {
   std::int64_t next_recovery_ns = 0;
   bool frame_since_start = false;  // a frame arrived since the stream was (re)started
   int recovery_step = 0;  // 0: restart the stream next, then reopen the device
+  // Why a recording (.oni) this camera plays was refused, set once before it is first opened
+  // (status.last_error points at it): OpenNI2's player trusts the file's sizes.
+  std::string refused;
 };
 
 RigCapture::RigCapture(const RigCalibration& rig, const CaptureOptions& options)
@@ -112,6 +118,13 @@ RigCapture::RigCapture(const RigCalibration& rig, const CaptureOptions& options)
     cam->frame.depth_mm.assign(pixels, 0);
     cam->frame.width = cal.intrinsics.width;
     cam->frame.height = cal.intrinsics.height;
+    if (io::IsOniUri(cal.uri)) {
+      try {
+        (void)io::CheckOniFile(cal.uri);
+      } catch (const InputError& e) {
+        cam->refused = e.what();
+      }
+    }
     cameras_.push_back(std::move(cam));
   }
   ready_.reserve(cameras_.size());
@@ -154,6 +167,10 @@ void RigCapture::Open(Camera* cam) {
   cam->recovery_step = 0;
   const CameraCalibration& cal = cam->calibration;
   openni::Status rc = openni::STATUS_ERROR;
+  if (!cam->refused.empty()) {
+    SetHealth(cam, CameraHealth::kMissing, now, cam->refused.c_str());
+    return;
+  }
   if (!cal.uri.empty()) {
     rc = cam->device.open(cal.uri.c_str());
   } else {

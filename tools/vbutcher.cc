@@ -10,6 +10,7 @@
 #include "io/version.h"
 #include "perception/synthetic_set.h"
 #include "tools/bench_command.h"
+#include "tools/bench_inputs.h"
 #include "tools/bench_shapes.h"
 #include "tools/capture_command.h"
 #include "tools/lcm_command.h"
@@ -230,6 +231,21 @@ int main(int argc, char** argv) {
   capture_bench_cmd->add_option("--csv", capture_bench.csv, "One row per frame set")
       ->capture_default_str();
 
+  vb::tools::InputBenchOptions input_bench;
+  CLI::App* input_bench_cmd = bench_cmd->add_subcommand(
+      "inputs",
+      "Peak memory and time of each file reader on the largest file its limits allow "
+      "(vbutcher --max-points ... bench inputs measures other limits)");
+  input_bench_cmd->add_option("--scale", input_bench.scale, "Share of each limit the files reach")
+      ->check(CLI::Range(1e-6, 1.0))
+      ->capture_default_str();
+  input_bench_cmd->add_option("--repeats", input_bench.repeats, "Reads per file")
+      ->check(CLI::Range(1, 100))
+      ->capture_default_str();
+  input_bench_cmd->add_option("--dir", input_bench.dir, "Scratch folder (default: a temporary one)");
+  input_bench_cmd->add_option("--only", input_bench.only, "Only these cases")->delimiter(',');
+  input_bench_cmd->add_option("--csv", input_bench.csv, "One row per read")->capture_default_str();
+
   vb::tools::ShapeBenchOptions shape_bench;
   CLI::App* shape_bench_cmd = bench_cmd->add_subcommand(
       "shapes",
@@ -353,6 +369,7 @@ int main(int argc, char** argv) {
     if (info_cmd->parsed()) return vb::tools::RunTemplateInfo(info_path);
     if (capture_bench_cmd->parsed()) return vb::tools::RunCaptureBench(capture_bench);
     if (shape_bench_cmd->parsed()) return vb::tools::RunShapeBench(shape_bench);
+    if (input_bench_cmd->parsed()) return vb::tools::RunInputBench(input_bench);
     if (bench_cmd->parsed()) return vb::tools::RunBenchCommand(bench);
     if (virtual_rig_cmd->parsed()) return vb::tools::RunVirtualRig(virtual_rig);
     if (virtual_line_cmd->parsed()) return vb::tools::RunVirtualLine(virtual_line);

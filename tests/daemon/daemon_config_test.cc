@@ -196,6 +196,27 @@ TEST_F(DaemonConfigTest, RefusesVirtualCamerasOnARealCanInterfaceUnlessSimulatio
               HasSubstr("sim.yaml:5: simulation: is true, but the cameras are real"));
 }
 
+TEST_F(DaemonConfigTest, ARecordingTheRigPlaysIsWalkedBeforeOpenNi2ReadsIt) {
+  perception::RingRigOptions playback;
+  playback.num_cameras = 2;
+  perception::RigCalibration rig = perception::MakeRingRig(playback);
+  rig.cameras[0].uri = (dir_ / "cam0.oni").string();
+  rig.cameras[1].uri = (dir_ / "cam1.oni").string();
+  dir_.Write("cam0.oni", "a text file someone renamed");
+  perception::SaveRigCalibration(dir_ / "playback.yaml", rig);
+  const std::string both = [&] {
+    try {
+      LoadDaemonConfig(dir_.Write("play.yaml", "format: virtualbutcherd-config\nversion: 1\n"
+                                               "template: lamb.vbt\nrig: playback.yaml\n"));
+    } catch (const InputError& error) {
+      return std::string(error.what());
+    }
+    return std::string("(accepted)");
+  }();
+  EXPECT_THAT(both, HasSubstr((dir_ / "cam0.oni").string() + ": at byte 0: not an OpenNI recording"));
+  EXPECT_THAT(both, HasSubstr((dir_ / "cam1.oni").string() + ": not a recording file"));
+}
+
 TEST_F(DaemonConfigTest, AKeyThatIsNotAPlainValueIsAProblemNotACrash) {
   EXPECT_THAT(Error("capture: {? [fps, x] : 3, fps: 500}\n"),
               HasSubstr("vbd.yaml:5: capture.?: expected a single value"));

@@ -1,6 +1,14 @@
 #include "perception/oni_recording.h"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <string>
+
+#include "io/oni_file.h"
 
 #include "perception/depth_noise.h"
 #include "perception/depth_renderer.h"
@@ -62,6 +70,53 @@ TEST_F(OniRecordingTest, RecordingPlaysBackThroughOpenNi2sFileDriver) {
     EXPECT_GE(played[c], 30) << c;
     EXPECT_EQ(exact[c], played[c]) << c;
   }
+
+  // The walk that runs before OpenNI2's player accepts what OpenNI2's recorder wrote.
+  const io::OniSummary oni = io::CheckOniFile(summary.files[0]);
+  ASSERT_EQ(oni.nodes.size(), 1u);
+  EXPECT_EQ(oni.nodes[0].type, 2u);  // depth
+  EXPECT_EQ(oni.nodes[0].width, playback.cameras[0].intrinsics.width);
+  EXPECT_EQ(oni.nodes[0].height, playback.cameras[0].intrinsics.height);
+  EXPECT_EQ(oni.nodes[0].data_records, oni.nodes[0].frames);
+  EXPECT_GE(oni.nodes[0].data_records, 10u);
+}
+
+TEST_F(OniRecordingTest, AnUnsoundRecordingIsRefusedBeforeOpenNi2ReadsIt) {
+  perception::VirtualRigOptions options;
+  options.ring.num_cameras = 1;
+  WriteRig(options);
+  RecordOptions record;
+  record.out_dir = dir_ / "recording";
+  record.seconds = 0.5;
+  const RecordSummary summary = RecordOni(scene_.rig, CaptureOptions{}, record);
+  ASSERT_EQ(summary.files.size(), 1u);
+  // The first frame's payload size word (the record after the node's properties) claims
+  // 2 GB: OpenNI2 would read it as a frame.
+  std::string bytes;
+  {
+    std::ifstream in(summary.files[0], std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  std::size_t at = 24;
+  for (;;) {
+    std::uint32_t head[5];
+    ASSERT_LE(at + 28, bytes.size());
+    std::memcpy(head, bytes.data() + at, sizeof head);
+    if (head[1] == 0x0A) break;  // the first frame
+    at += head[3] + head[4];
+  }
+  const std::uint32_t claim = 0x7fffffff;
+  std::memcpy(&bytes[at + 16], &claim, 4);
+  std::ofstream(summary.files[0], std::ios::binary | std::ios::trunc) << bytes;
+
+  const RigCalibration playback = LoadRigCalibration(summary.rig_path);
+  RigCapture dut(playback, CaptureOptions{});
+  dut.Poll();
+  EXPECT_EQ(dut.status(0).health, CameraHealth::kMissing);
+  EXPECT_THAT(dut.status(0).last_error,
+              ::testing::HasSubstr("at byte " + std::to_string(at) +
+                                   ": a record payload of 2147483647 bytes, more than the limit"));
+  EXPECT_EQ(dut.status(0).frames, 0u);
 }
 
 }  // namespace

@@ -150,5 +150,12 @@ check "bench full starts from the truth" 0 "sigma 0: started from the truth at c
 check "bench refuses too few cloud points" nonzero "cloud-points" \
   "$vbutcher" bench full --pairs 1 --cloud-points 5
 
+# bench inputs, its files at a thousandth of the limits: every reader reads or refuses its
+# file (none fails otherwise), one CSV row per read.
+check "bench inputs reads each parser's file" 0 "| oni_records | .* | read 1,000 frames walked |" \
+  "$vbutcher" bench inputs --scale 0.001 --repeats 1 --csv "$work/inputs.csv"
+rows=$(($(wc -l <"$work/inputs.csv") - 1))
+[ "$rows" -eq 16 ] || { echo "FAIL: bench inputs wrote $rows rows, not 16"; failures=$((failures + 1)); }
+
 echo "$failures failed"
 [ "$failures" -eq 0 ]
