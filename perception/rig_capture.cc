@@ -51,6 +51,67 @@ void ReleaseOpenNi() {
 
 }  // namespace
 
+namespace {
+
+std::string DescribeMode(const openni::VideoMode& mode) {
+  const char* format = "?";
+  switch (mode.getPixelFormat()) {
+    case openni::PIXEL_FORMAT_DEPTH_1_MM: format = "depth 1 mm"; break;
+    case openni::PIXEL_FORMAT_DEPTH_100_UM: format = "depth 100 um"; break;
+    case openni::PIXEL_FORMAT_SHIFT_9_2: format = "shift 9.2"; break;
+    case openni::PIXEL_FORMAT_SHIFT_9_3: format = "shift 9.3"; break;
+    case openni::PIXEL_FORMAT_RGB888: format = "RGB888"; break;
+    case openni::PIXEL_FORMAT_YUV422: format = "YUV422"; break;
+    case openni::PIXEL_FORMAT_GRAY8: format = "gray 8"; break;
+    case openni::PIXEL_FORMAT_GRAY16: format = "gray 16"; break;
+    case openni::PIXEL_FORMAT_JPEG: format = "JPEG"; break;
+    case openni::PIXEL_FORMAT_YUYV: format = "YUYV"; break;
+  }
+  return std::to_string(mode.getResolutionX()) + "x" + std::to_string(mode.getResolutionY()) + " " +
+         std::to_string(mode.getFps()) + " fps " + format;
+}
+
+std::vector<std::string> Modes(const openni::SensorInfo* info) {
+  std::vector<std::string> out;
+  if (info == nullptr) return out;
+  const openni::Array<openni::VideoMode>& modes = info->getSupportedVideoModes();
+  for (int i = 0; i < modes.getSize(); ++i) out.push_back(DescribeMode(modes[i]));
+  return out;
+}
+
+}  // namespace
+
+std::vector<DeviceListing> ListDevices() {
+  AcquireOpenNi();
+  std::vector<DeviceListing> out;
+  openni::Array<openni::DeviceInfo> devices;
+  openni::OpenNI::enumerateDevices(&devices);
+  for (int i = 0; i < devices.getSize(); ++i) {
+    const openni::DeviceInfo& info = devices[i];
+    DeviceListing d;
+    d.uri = info.getUri();
+    d.vendor = info.getVendor();
+    d.name = info.getName();
+    d.usb_vendor_id = info.getUsbVendorId();
+    d.usb_product_id = info.getUsbProductId();
+    openni::Device device;
+    if (device.open(info.getUri()) != openni::STATUS_OK) {
+      d.error = std::string("cannot be opened: ") + openni::OpenNI::getExtendedError();
+    } else {
+      char serial[64] = {};
+      int size = sizeof(serial);
+      if (device.getProperty(ONI_DEVICE_PROPERTY_SERIAL_NUMBER, serial, &size) == openni::STATUS_OK)
+        d.serial = serial;
+      d.depth_modes = Modes(device.getSensorInfo(openni::SENSOR_DEPTH));
+      d.colour_modes = Modes(device.getSensorInfo(openni::SENSOR_COLOR));
+      device.close();
+    }
+    out.push_back(std::move(d));
+  }
+  ReleaseOpenNi();
+  return out;
+}
+
 std::int64_t MonotonicNs() {
   timespec ts{};
   clock_gettime(CLOCK_MONOTONIC, &ts);

@@ -120,6 +120,20 @@ bool FrameSetReady(const RigCapture& capture, std::span<const std::uint64_t> sin
 /// True when @p camera's newest frame may go into a frame set.
 bool UsableForFusion(const RigCapture& capture, int camera);
 
+/// One OpenNI2 device as the drivers list it (PrimeSense hardware, the virtual rig).
+struct DeviceListing {
+  std::string uri, vendor, name, serial;
+  int usb_vendor_id = 0, usb_product_id = 0;
+  std::vector<std::string> depth_modes;   ///< e.g. "640x480 30 fps depth 1 mm"
+  std::vector<std::string> colour_modes;  ///< e.g. "640x480 30 fps RGB888"
+  std::string error;                      ///< why it could not be opened to read the above
+};
+
+/// Every device OpenNI2's drivers find now, each opened briefly for its serial and modes.
+/// @pre no RigCapture holds a device this process would open again (it is opened here).
+/// @throws std::runtime_error when OpenNI2 cannot initialise.
+std::vector<DeviceListing> ListDevices();
+
 /// CLOCK_MONOTONIC in nanoseconds.
 std::int64_t MonotonicNs();
 

@@ -12,6 +12,7 @@
 #include "tools/bench_command.h"
 #include "tools/bench_inputs.h"
 #include "tools/bench_shapes.h"
+#include "tools/calibrate_command.h"
 #include "tools/capture_command.h"
 #include "tools/lcm_command.h"
 #include "tools/morph_command.h"
@@ -283,6 +284,84 @@ int main(int argc, char** argv) {
   shape_bench_cmd->add_option("--export", shape_bench.export_dir,
                               "Write templates and posed targets there as PLY");
 
+  vb::tools::CamerasCommandOptions cameras;
+  CLI::App* cameras_cmd = app.add_subcommand(
+      "cameras", "List every OpenNI2 device (URI, serial, USB ids, modes) and its rig entry");
+  cameras_cmd->add_option("--rig", cameras.rig_path, "Rig calibration to match devices against")
+      ->check(CLI::ExistingFile);
+  cameras_cmd->add_option("--scene", cameras.scene_path, "Virtual scene (for the virtual rig)")
+      ->check(CLI::ExistingFile);
+
+  CLI::App* calibrate_cmd = app.add_subcommand(
+      "calibrate", "Calibrate the rig and the saw from depth alone (docs/operations.md, bring-up)");
+  calibrate_cmd->require_subcommand(1);
+  vb::tools::TargetCommandOptions target;
+  CLI::App* target_cmd = calibrate_cmd->add_subcommand(
+      "target", "Describe the calibration target; write its YAML or its mesh");
+  target_cmd->add_option("--target", target.target_path, "Target YAML (default: the shipped one)")
+      ->check(CLI::ExistingFile);
+  target_cmd->add_option("--out", target.out_yaml, "Write the target's YAML");
+  target_cmd->add_option("--mesh", target.out_mesh, "Write its mesh (.ply, .off, .obj)");
+  target_cmd->add_option("--yaw-deg", target.yaw_deg, "The mesh turned about the rod")->capture_default_str();
+  vb::tools::CalibrateCaptureOptions calibrate_capture;
+  CLI::App* calibrate_capture_cmd = calibrate_cmd->add_subcommand(
+      "capture", "Average a still view per camera of what hangs on the hook: OUT/SERIAL.ply");
+  calibrate_capture_cmd->add_option("--rig", calibrate_capture.rig_path, "Rig calibration")
+      ->required()
+      ->check(CLI::ExistingFile);
+  calibrate_capture_cmd->add_option("--scene", calibrate_capture.scene_path, "Virtual scene")
+      ->check(CLI::ExistingFile);
+  calibrate_capture_cmd->add_option("--out", calibrate_capture.out_dir, "Output folder")->required();
+  calibrate_capture_cmd->add_option("--frames", calibrate_capture.frames, "Frames averaged per camera")
+      ->check(CLI::Range(1, 300))
+      ->capture_default_str();
+  vb::tools::CalibrateRigOptions calibrate_rig;
+  CLI::App* calibrate_rig_cmd = calibrate_cmd->add_subcommand(
+      "rig", "Solve every camera's pose from captures of the target (the first defines the rig frame)");
+  calibrate_rig_cmd->add_option("--rig", calibrate_rig.rig_path, "Starting rig (rough poses)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  calibrate_rig_cmd->add_option("--captures", calibrate_rig.captures, "Capture folders, one per position")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  calibrate_rig_cmd->add_option("--target", calibrate_rig.target_path, "Target YAML (default: the shipped one)")
+      ->check(CLI::ExistingFile);
+  calibrate_rig_cmd->add_option("--out", calibrate_rig.out_path, "Calibrated rig YAML")->required();
+  calibrate_rig_cmd->add_option("--max-rms-mm", calibrate_rig.max_rms_mm, "Largest residual accepted")
+      ->capture_default_str();
+  vb::tools::CalibrateSawOptions calibrate_saw;
+  CLI::App* calibrate_saw_cmd = calibrate_cmd->add_subcommand(
+      "saw", "X_SawRig from points the saw's ball was jogged to and the rig saw");
+  calibrate_saw_cmd->add_option("--rig", calibrate_saw.rig_path, "Calibrated rig")
+      ->required()
+      ->check(CLI::ExistingFile);
+  calibrate_saw_cmd->add_option("--points", calibrate_saw.points_path, "vbutcher-saw-points YAML")
+      ->required()
+      ->check(CLI::ExistingFile);
+  calibrate_saw_cmd->add_option("--out", calibrate_saw.out_path, "Write X_SawRig (YAML)");
+  calibrate_saw_cmd->add_option("--check", calibrate_saw.check_path,
+                                "Check the X_SawRig in this file (daemon config or --out) instead")
+      ->check(CLI::ExistingFile);
+  calibrate_saw_cmd->add_option("--max-rms-mm", calibrate_saw.max_rms_mm, "Largest residual accepted")
+      ->capture_default_str();
+
+  vb::tools::CheckRigOptions check_rig;
+  CLI::App* check_rig_cmd = app.add_subcommand(
+      "check-rig", "With the target on the hook, check every camera against the others");
+  check_rig_cmd->add_option("--rig", check_rig.rig_path, "Rig calibration")
+      ->required()
+      ->check(CLI::ExistingFile);
+  check_rig_cmd->add_option("--scene", check_rig.scene_path, "Virtual scene")->check(CLI::ExistingFile);
+  check_rig_cmd->add_option("--target", check_rig.target_path, "Target YAML (default: the shipped one)")
+      ->check(CLI::ExistingFile);
+  check_rig_cmd->add_option("--frames", check_rig.frames, "Frames averaged per camera")
+      ->check(CLI::Range(1, 300))
+      ->capture_default_str();
+  check_rig_cmd->add_option("--max-offset-mm", check_rig.max_offset_mm, "A camera further off has moved")
+      ->capture_default_str();
+  check_rig_cmd->add_option("--max-turn-deg", check_rig.max_turn_deg, "A camera turned further has moved")
+      ->capture_default_str();
+
   vb::tools::SawSimOptions saw_sim;
   CLI::App* saw_sim_cmd = app.add_subcommand(
       "saw-sim", "Reference band-saw controller on a CAN interface (checks, acks, safe stop)");
@@ -370,6 +449,12 @@ int main(int argc, char** argv) {
     if (capture_bench_cmd->parsed()) return vb::tools::RunCaptureBench(capture_bench);
     if (shape_bench_cmd->parsed()) return vb::tools::RunShapeBench(shape_bench);
     if (input_bench_cmd->parsed()) return vb::tools::RunInputBench(input_bench);
+    if (cameras_cmd->parsed()) return vb::tools::RunCameras(cameras);
+    if (target_cmd->parsed()) return vb::tools::RunCalibrateTarget(target);
+    if (calibrate_capture_cmd->parsed()) return vb::tools::RunCalibrateCapture(calibrate_capture);
+    if (calibrate_rig_cmd->parsed()) return vb::tools::RunCalibrateRig(calibrate_rig);
+    if (calibrate_saw_cmd->parsed()) return vb::tools::RunCalibrateSaw(calibrate_saw);
+    if (check_rig_cmd->parsed()) return vb::tools::RunCheckRig(check_rig);
     if (bench_cmd->parsed()) return vb::tools::RunBenchCommand(bench);
     if (virtual_rig_cmd->parsed()) return vb::tools::RunVirtualRig(virtual_rig);
     if (virtual_line_cmd->parsed()) return vb::tools::RunVirtualLine(virtual_line);

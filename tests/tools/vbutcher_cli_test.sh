@@ -141,6 +141,47 @@ sed 's/^fps: .*/fps: 0/' "$work/rig/scene.yaml" >"$work/rig/badscene.yaml"
 check "capture refuses a bad scene, naming file and key" 2 "badscene.yaml:.*fps" \
   "$vbutcher" capture --rig "$work/rig/rig.yaml" --scene "$work/rig/badscene.yaml" --out "$work/x.ply"
 
+# Bring-up on the virtual rig: list the cameras, hang the sphere target, capture it, solve
+# the cameras' poses, check the rig, calibrate the saw from paired points.
+check "cameras lists each device with its rig entry" 0 "serial VB0002, USB 0000:0000" \
+  "$vbutcher" cameras --rig "$work/rig/rig.yaml" --scene "$work/rig/scene.yaml"
+"$vbutcher" virtual-rig --out "$work/rig4" --cameras 4 >/dev/null
+check "cameras names a rig entry with no device" 3 "rig entry cam3 (serial VB0004, URI vbrig://VB0004): no device" \
+  "$vbutcher" cameras --rig "$work/rig4/rig.yaml" --scene "$work/rig/scene.yaml"
+check "calibrate target writes the target and its mesh" 0 "sphere 2: radius 60.0 mm" \
+  "$vbutcher" calibrate target --out "$work/target.yaml" --mesh "$work/target.ply"
+sed "s|^carcass: .*|carcass: $work/target.ply|" "$work/rig/scene.yaml" >"$work/rig/target_scene.yaml"
+check "calibrate capture averages a view per camera" 0 "cam2 (VB0003): [0-9]* points, 10 frames averaged" \
+  "$vbutcher" calibrate capture --rig "$work/rig/rig.yaml" --scene "$work/rig/target_scene.yaml" --out "$work/pos1"
+check "calibrate rig solves the cameras from the target" 0 "wrote $work/calibrated.yaml" \
+  "$vbutcher" calibrate rig --rig "$work/rig/rig.yaml" --captures "$work/pos1" --target "$work/target.yaml" \
+  --out "$work/calibrated.yaml"
+check "check-rig finds the calibrated rig consistent" 0 "rig ok" \
+  "$vbutcher" check-rig --rig "$work/calibrated.yaml" --scene "$work/rig/target_scene.yaml"
+# cam1 said to stand 10 mm further along x than it does.
+awk '/translation: \[/ && ++n == 2 { match($0, /\[[-0-9.e]*/); x = substr($0, RSTART + 1, RLENGTH - 1);
+       $0 = substr($0, 1, RSTART) sprintf("%.17g", x + 0.010) substr($0, RSTART + RLENGTH) } 1' \
+  "$work/calibrated.yaml" >"$work/moved.yaml"
+check "check-rig flags the camera that moved" 3 "| cam1 | VB0002 | 3 | [0-9.]* | [0-9.]* | MOVED: recalibrate |" \
+  "$vbutcher" check-rig --rig "$work/moved.yaml" --scene "$work/rig/target_scene.yaml"
+cat >"$work/saw_points.yaml" <<'YAML'
+format: vbutcher-saw-points
+version: 1
+ball_radius_m: 0.04
+points:                         # saw = rig turned 90 degrees about z, then moved (1, 2, 0.5)
+  - {saw: [1.0, 2.1, 0.2], rig: [0.1, 0.0, -0.3]}
+  - {saw: [1.2, 2.0, -0.1], rig: [0.0, -0.2, -0.6]}
+  - {saw: [0.9, 1.7, -0.4], rig: [-0.3, 0.1, -0.9]}
+  - {saw: [0.75, 2.25, 0.0], rig: [0.25, 0.25, -0.5]}
+YAML
+check "calibrate saw solves X_SawRig from paired points" 0 "rms 0.00 mm" \
+  "$vbutcher" calibrate saw --rig "$work/calibrated.yaml" --points "$work/saw_points.yaml" --out "$work/saw.yaml"
+grep -q "rotation_wxyz: \[0.7071067811865" "$work/saw.yaml" ||
+  { echo "FAIL: calibrate saw wrote $(cat "$work/saw.yaml")"; failures=$((failures + 1)); }
+sed 's/translation: \[1/translation: [1.01/' "$work/saw.yaml" >"$work/saw_moved.yaml"
+check "calibrate saw --check says when X_SawRig no longer holds" 3 "no longer holds" \
+  "$vbutcher" calibrate saw --rig "$work/calibrated.yaml" --points "$work/saw_points.yaml" --check "$work/saw_moved.yaml"
+
 # bench --start-from-truth: the dense stage's start, fitted to the true surface, carries the
 # cuts to within a millimetre by their lines' planes (what the dense stage then does is the
 # measurement).
