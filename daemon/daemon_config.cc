@@ -17,7 +17,8 @@ namespace {
 // The keys of the file: the top level, and each section's.
 const std::vector<const char*> kTopKeys = {
     "format",  "version", "template", "rig", "virtual_scene", "simulation", "capture",
-    "fusion",  "job",     "morph",    "lcm", "can",           "memory",     "X_SawRig"};
+    "fusion",  "job",     "morph",    "lcm", "can",           "memory",     "rig_check",
+    "X_SawRig"};
 const std::vector<std::pair<const char*, std::vector<const char*>>> kSectionKeys = {
     {"capture",
      {"fps", "wait_timeout_ms", "frozen_periods", "first_frame_timeout_ms", "min_valid_ratio",
@@ -33,6 +34,7 @@ const std::vector<std::pair<const char*, std::vector<const char*>>> kSectionKeys
      {"url", "cut_lines_channel", "status_channel", "diagnostics_channel", "status_period_ms"}},
     {"can", {"interface", "send_deadline_ms", "answer_timeout_ms", "record"}},
     {"memory", {"arena_mib"}},
+    {"rig_check", {"at_start", "target", "frames", "max_offset_mm", "max_turn_deg"}},
 };
 
 const std::vector<const char*>& SectionKeys(const std::string& name) {
@@ -383,6 +385,20 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
   // the arena out in 32 MiB segments, one or more per thread.
   const Section memory(r, &problems, root, "memory");
   memory.Int("arena_mib", 128, 16384, &c.memory.arena_mib);
+
+  const Section rig_check(r, &problems, root, "rig_check");
+  rig_check.Bool("at_start", &c.rig_check.at_start);
+  rig_check.Int("frames", 1, 100, &c.rig_check.frames);
+  rig_check.Double("max_offset_mm", 0.5, 50.0, &c.rig_check.max_offset_mm);
+  rig_check.Double("max_turn_deg", 0.05, 10.0, &c.rig_check.max_turn_deg);
+  if (rig_check["target"]) {
+    problems.Try([&] {
+      const std::filesystem::path p(r.Scalar<std::string>(rig_check["target"], "rig_check.target"));
+      if (p.empty()) return;
+      c.rig_check.target_path = p.is_absolute() ? p : folder / p;
+      c.rig_check.target = perception::LoadCalibrationTarget(c.rig_check.target_path);
+    });
+  }
 
   if (root["X_SawRig"])
     problems.Try([&] { c.X_SawRig = r.Isometry(root["X_SawRig"], "X_SawRig"); });

@@ -7,6 +7,7 @@
 
 #include "io/lcm_publisher.h"
 #include "morph/coarse_alignment.h"
+#include "perception/calibration_target.h"
 #include "perception/fusion.h"
 #include "perception/rig_calibration.h"
 #include "perception/rig_capture.h"
@@ -44,6 +45,19 @@ struct JobOptions {
   /// last_cuts.csv), replacing the previous job's: for operators and the demo's picture.
   /// "" in the file: none.
   std::filesystem::path dump_dir;
+};
+
+/// The rig check (vbutcher check-rig) the daemon runs at start and on SIGUSR1: with the
+/// calibration target on the hook, every camera against the others. A camera found moved
+/// refuses every job until a later check passes (or the rig is recalibrated and the daemon
+/// restarted); a check without the target on the hook says so and changes nothing.
+struct RigCheckSection {
+  bool at_start = true;
+  std::filesystem::path target_path;  ///< empty: the shipped target (DefaultCalibrationTarget)
+  perception::CalibrationTarget target = perception::DefaultCalibrationTarget();
+  int frames = 10;  ///< averaged per camera
+  double max_offset_mm = 2.5;
+  double max_turn_deg = 0.5;
 };
 
 /// What the morph may assume on the line.
@@ -101,6 +115,7 @@ struct DaemonConfig {
   LcmOptions lcm;
   CanOptions can;
   MemoryOptions memory;
+  RigCheckSection rig_check;
   /// Pose of the rig frame in the saw frame: waypoints go out as p_Saw = X_SawRig p_Rig.
   Eigen::Isometry3d X_SawRig = Eigen::Isometry3d::Identity();
   int watchdog_ms = 0;  ///< filled from $WATCHDOG_USEC by the daemon, not from the file

@@ -1,6 +1,9 @@
 #include "daemon/pipeline.h"
 
+#include <algorithm>
 #include <array>
+#include <ctime>
+#include <span>
 #include <cstring>
 #include <chrono>
 #include <cstdio>
@@ -140,15 +143,160 @@ void Pipeline::Start() {
   capture_alive_ns_ = job_alive_ns_ = perception::MonotonicNs();
   capture_thread_ = std::thread([this] { CaptureLoop(); });
   job_thread_ = std::thread([this] { JobLoop(); });
+  if (config_.rig_check.at_start) RequestRigCheck();
 }
 
 void Pipeline::Stop() {
   saw_->Close();  // first: nothing goes to the saw once shutdown has begun
   stop_ = true;   // a morph under way sees it at its next solver iteration
   slot_cv_.notify_all();
+  collect_cv_.notify_all();
   if (capture_thread_.joinable()) capture_thread_.join();
   if (job_thread_.joinable()) job_thread_.join();
+  if (rig_check_thread_.joinable()) rig_check_thread_.join();
   capture_.reset();
+}
+
+struct Pipeline::RigCheckFrames {
+  std::vector<std::vector<std::vector<std::uint16_t>>> frames;  // [camera][frame]
+  std::vector<int> filled;
+  std::vector<std::uint64_t> seen;  // each camera's frame count at its last copy
+  std::int64_t deadline_ns = 0;
+};
+
+void Pipeline::RequestRigCheck() { rig_check_requested_ = true; }
+
+std::string Pipeline::RigCheckLine() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return rig_check_line_;
+}
+
+void Pipeline::CollectForRigCheck(const perception::RigCapture& capture) {
+  std::unique_lock<std::mutex> lock(collect_mutex_);
+  if (collect_ == nullptr || collect_done_) return;
+  RigCheckFrames& r = *collect_;
+  bool all = true;
+  for (int c = 0; c < capture.num_cameras(); ++c) {
+    const auto k = static_cast<std::size_t>(c);
+    std::vector<std::vector<std::uint16_t>>& mine = r.frames[k];
+    const perception::CameraStatus& status = capture.status(c);
+    if (r.filled[k] < static_cast<int>(mine.size()) && status.frames != r.seen[k] &&
+        perception::UsableForFusion(capture, c)) {
+      r.seen[k] = status.frames;
+      const std::vector<std::uint16_t>& depth = capture.frame(c).depth_mm;
+      std::vector<std::uint16_t>& into = mine[static_cast<std::size_t>(r.filled[k])];
+      if (depth.size() == into.size()) {  // copied into the check's buffer: no allocation here
+        std::copy(depth.begin(), depth.end(), into.begin());
+        ++r.filled[k];
+      }
+    }
+    all = all && r.filled[k] == static_cast<int>(mine.size());
+  }
+  if (all || perception::MonotonicNs() > r.deadline_ns) {
+    collect_done_ = true;
+    lock.unlock();
+    collect_cv_.notify_all();
+  }
+}
+
+void Pipeline::RigCheck() {
+  const MemoryBudgetScope budget;
+  const RigCheckSection& options = config_.rig_check;
+  const std::size_t n = config_.rig.cameras.size();
+  RigCheckFrames r;
+  r.frames.resize(n);
+  r.filled.assign(n, 0);
+  r.seen.assign(n, 0);
+  for (std::size_t c = 0; c < n; ++c) {
+    const perception::Intrinsics& k = config_.rig.cameras[c].intrinsics;
+    r.frames[c].assign(static_cast<std::size_t>(options.frames),
+                       std::vector<std::uint16_t>(static_cast<std::size_t>(k.width) * k.height));
+  }
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    for (std::size_t c = 0; c < n; ++c) r.seen[c] = camera_status_[c].frames;
+  }
+  const std::int64_t wait_ms =
+      std::int64_t{options.frames} * 3000 / std::max(1, config_.capture.fps) + 2000;
+  r.deadline_ns = perception::MonotonicNs() + wait_ms * 1000000;
+  {
+    std::unique_lock<std::mutex> lock(collect_mutex_);
+    collect_done_ = false;
+    collect_ = &r;
+    collect_cv_.wait_for(lock, std::chrono::milliseconds(wait_ms + 1000),
+                         [&] { return collect_done_ || stop_; });
+    collect_ = nullptr;
+  }
+  if (stop_) {
+    rig_check_running_ = false;
+    return;
+  }
+  std::vector<std::vector<perception::SphereSighting>> sightings(n);
+  for (std::size_t c = 0; c < n; ++c) {
+    if (r.filled[c] == 0) continue;
+    const std::span<const std::vector<std::uint16_t>> taken(r.frames[c].data(),
+                                                             static_cast<std::size_t>(r.filled[c]));
+    const perception::CameraCalibration& camera = config_.rig.cameras[c];
+    sightings[c] = perception::FindTargetSpheres(
+        perception::DepthToPoints(perception::AverageDepth(taken), camera.intrinsics),
+        camera.X_RigCam, options.target);
+  }
+  perception::RigCheckOptions limits;
+  limits.max_offset_mm = options.max_offset_mm;
+  limits.max_turn_deg = options.max_turn_deg;
+  const perception::RigCheckResult check =
+      perception::CheckRigWithTarget(config_.rig, options.target, sightings, limits);
+
+  char when[16];
+  const std::time_t now = std::time(nullptr);
+  std::tm local{};
+  localtime_r(&now, &local);
+  std::strftime(when, sizeof when, "%H:%M:%S", &local);
+  std::string line;
+  char part[200];
+  if (check.compared < 2) {
+    int saw = 0;
+    for (const auto& s : sightings) saw += s.size() >= 3;
+    std::snprintf(part, sizeof part,
+                  "not checked at %s: the calibration target is not on the hook (%d of %zu "
+                  "cameras saw 3 of its spheres)",
+                  when, saw, n);
+    line = part;
+    if (rig_moved_) line += "; a camera found moved earlier still refuses jobs";
+  } else {
+    double worst_mm = 0, worst_deg = 0;
+    std::string moved;
+    for (std::size_t c = 0; c < n; ++c) {
+      const perception::CameraCheck& k = check.cameras[c];
+      worst_mm = std::max(worst_mm, k.offset_mm);
+      worst_deg = std::max(worst_deg, k.turn_deg);
+      if (!k.moved) continue;
+      std::snprintf(part, sizeof part, "%s%s moved %.1f mm, turned %.2f deg", moved.empty() ? "" : "; ",
+                    config_.rig.cameras[c].name.c_str(), k.offset_mm, k.turn_deg);
+      moved += part;
+    }
+    if (moved.empty()) {
+      std::snprintf(part, sizeof part, "ok at %s: %d cameras agree within %.1f mm and %.2f deg",
+                    when, check.compared, worst_mm, worst_deg);
+      line = part;
+    } else {
+      line = "MOVED at ";
+      line.append(when).append(": ").append(moved).append(
+          "; jobs are refused: recalibrate (vbutcher calibrate rig), or put it back and check "
+          "again (SIGUSR1)");
+    }
+    rig_moved_ = !moved.empty();
+  }
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    rig_check_line_ = line;
+    if (check.compared >= 2) rig_check_cameras_ = check.cameras;
+  }
+  const bool bad = rig_moved_ && check.compared >= 2;
+  Log(bad ? Priority::kWarning : Priority::kInfo, "rig check: %s", line.c_str());
+  Diagnose(bad ? vbutcher::diagnostic_t::WARNING : vbutcher::diagnostic_t::INFO, "rig_check",
+           line);
+  rig_check_running_ = false;
 }
 
 void Pipeline::CaptureLoop() {
@@ -189,6 +337,7 @@ void Pipeline::CaptureLoop() {
       std::lock_guard<std::mutex> lock(state_mutex_);
       for (int c = 0; c < n; ++c) camera_status_[static_cast<std::size_t>(c)] = capture.status(c);
     }
+    if (rig_check_running_) CollectForRigCheck(capture);
     const std::int64_t poll_ns = perception::MonotonicNs();
     for (int c = 0; c < n; ++c) {
       const auto k = static_cast<std::size_t>(c);
@@ -320,6 +469,8 @@ void Pipeline::CaptureLoop() {
     for (std::uint16_t d : taken_depths)
       taken_readings += d != 0 && d != perception::Fusion::kUnknownDepth;
     std::string refusal = capture_fault;
+    if (refusal.empty() && rig_moved_)
+      refusal = "the rig check found a camera moved (VB_STATUS rig_check): recalibrate, or check again";
     if (refusal.empty() && stats.border_readings > config_.job.max_border_readings) {
       char why[160];
       std::snprintf(why, sizeof(why),
@@ -542,6 +693,7 @@ bool Pipeline::Tick() {
     for (const perception::CameraStatus& s : camera_status_)
       degraded |= s.health != perception::CameraHealth::kOk;
   }
+  degraded |= rig_moved_.load();
   io::saw::DaemonState state = io::saw::DaemonState::kReady;
   if (!capture_ok || !job_ok)
     state = io::saw::DaemonState::kFault;
@@ -560,6 +712,11 @@ bool Pipeline::Tick() {
     Diagnose(state == io::saw::DaemonState::kFault ? vbutcher::diagnostic_t::ERROR
                                                    : vbutcher::diagnostic_t::INFO,
              "daemon", what);
+  }
+  if (rig_check_requested_.exchange(false) && !rig_check_running_) {
+    if (rig_check_thread_.joinable()) rig_check_thread_.join();  // the last one has finished
+    rig_check_running_ = true;
+    rig_check_thread_ = std::thread([this] { RigCheck(); });
   }
   saw_->SendHeartbeat(state, uptime_ms_);
   uptime_ms_ += io::saw::kHeartbeatPeriodMs;
@@ -583,12 +740,23 @@ void Pipeline::PublishStatus() {
     h.valid_ratio = static_cast<float>(camera_status_[c].valid_ratio);
     h.fps = static_cast<float>(camera_status_[c].fps);
     h.last_frame_utime = WallMicrosOf(camera_status_[c].last_frame_ns);
+    h.rig_check = vbutcher::camera_health_t::RIG_NOT_CHECKED;
+    h.rig_offset_mm = h.rig_turn_deg = 0;
+    if (c < rig_check_cameras_.size()) {
+      const perception::CameraCheck& k = rig_check_cameras_[c];
+      h.rig_check = !k.compared ? vbutcher::camera_health_t::RIG_NOT_COMPARED
+                    : k.moved   ? vbutcher::camera_health_t::RIG_MOVED
+                                : vbutcher::camera_health_t::RIG_OK;
+      h.rig_offset_mm = static_cast<float>(k.offset_mm);
+      h.rig_turn_deg = static_cast<float>(k.turn_deg);
+    }
     s.cameras.push_back(h);
   }
   s.num_cameras = static_cast<std::int8_t>(s.cameras.size());
   s.state = LcmState(state_.load());
   s.state_text = StatusLineLocked();
   s.version = version_;
+  s.rig_check = rig_check_line_;
   s.can_state = saw_->link_state();
   s.capture_latency_s = 0;
   s.fusion_latency_s = static_cast<float>(last_.fusion_s);
@@ -672,6 +840,7 @@ std::string Pipeline::StatusLineLocked() const {
                 last_.carcass_id.empty() ? "-" : last_.carcass_id.c_str(),
                 last_.carcass_id.empty() ? "-" : ToString(last_.verdict),
                 last_.reason.empty() ? "" : ": ", last_.reason.c_str());
+  if (rig_moved_) return std::string(line) + "; rig check: " + rig_check_line_;
   return line;
 }
 

@@ -16,6 +16,7 @@
 #include "morph/morph_carcass.h"
 #include "morph/template_artifact.h"
 #include "perception/fusion.h"
+#include "perception/rig_calibrator.h"
 #include "perception/rig_capture.h"
 
 namespace vb::daemon {
@@ -76,12 +77,25 @@ class Pipeline {
   /// True once no camera is still opening (each has delivered a frame or been found missing).
   bool CamerasSettled() const;
   VerdictCounts verdicts() const;
+  /// Asks for a rig check on the next frames (the target on the hook, every camera against
+  /// the others; config rig_check): from the main loop on SIGUSR1, and by Start() when
+  /// rig_check.at_start. It runs on a thread of its own while capture and jobs go on; a
+  /// request while one runs is dropped.
+  void RequestRigCheck();
+  /// The last rig check in one line: "not checked yet", "ok at 10:42:07, ...", ...
+  std::string RigCheckLine() const;
+  /// True from a check that found a camera moved until one that found none: jobs are
+  /// refused meanwhile.
+  bool RigMoved() const { return rig_moved_; }
   /// Warnings from start-up (job state file), for the daemon's log.
   const std::string& start_warning() const { return start_warning_; }
 
  private:
   void CaptureLoop();
   void JobLoop();
+  struct RigCheckFrames;
+  void RigCheck();                                                 // its own thread, once
+  void CollectForRigCheck(const perception::RigCapture& capture);  // the capture thread's
   void RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
               std::int64_t frames_ns, std::int64_t frames_utime, double fusion_s,
               const std::string& refusal);
@@ -130,6 +144,17 @@ class Pipeline {
   std::atomic<bool> busy_{false};
   std::atomic<io::saw::DaemonState> state_{io::saw::DaemonState::kReady};  // as of the last Tick
   std::string version_;  // "0.1.0 (git revision)", in VB_STATUS
+
+  // The rig check: its thread hands the capture thread buffers for each camera's next
+  // frames (collect_, under collect_mutex_), then judges them.
+  std::atomic<bool> rig_check_requested_{false}, rig_check_running_{false}, rig_moved_{false};
+  std::thread rig_check_thread_;
+  std::mutex collect_mutex_;
+  std::condition_variable collect_cv_;
+  RigCheckFrames* collect_ = nullptr;
+  bool collect_done_ = false;
+  std::string rig_check_line_ = "not checked yet";       // under state_mutex_
+  std::vector<perception::CameraCheck> rig_check_cameras_;  // under state_mutex_; empty: none
 
   std::uint32_t uptime_ms_ = 0;
   std::chrono::steady_clock::time_point next_status_{};

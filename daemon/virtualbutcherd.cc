@@ -153,6 +153,7 @@ int main(int argc, char** argv) {
   sigaction(SIGTERM, &action, nullptr);
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGHUP, &action, nullptr);
+  sigaction(SIGUSR1, &action, nullptr);  // a rig check on the next frames
 
   std::unique_ptr<vb::io::LcmPublisher> publisher;
   std::unique_ptr<vb::daemon::SawLink> saw;
@@ -217,6 +218,12 @@ int main(int argc, char** argv) {
       Log(Priority::kWarning,
                    "SIGHUP: configuration reload is not supported "
                    "(cameras and budgets are sized at start); restart the service\n");
+      g_signal = 0;
+    }
+    if (g_signal == SIGUSR1) {
+      Log(Priority::kNotice, "SIGUSR1: a rig check on the next frames (the target should hang on "
+                             "the hook)\n");
+      pipeline->RequestRigCheck();
       g_signal = 0;
     }
     if (g_signal != 0) break;

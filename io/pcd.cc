@@ -1,13 +1,13 @@
 #include "io/pcd.h"
 
-#include <pcl/PCLPointCloud2.h>
-#include <pcl/common/io.h>
-#include <pcl/conversions.h>
+#include <pcl/io/lzf.h>
 #include <pcl/io/pcd_io.h>
 #include <pcl/point_types.h>
 
 #include <algorithm>
 #include <charconv>
+#include <cstring>
+#include <functional>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -21,10 +21,11 @@
 namespace vb::io {
 namespace {
 
-// A PCD header, read and checked here in full before PCL sees the file: PCL 1.13 sizes its
-// buffers from WIDTH x HEIGHT, allocates what a compressed body's first word claims, and its
-// ASCII reader writes past its buffer when FIELDS, SIZE, TYPE and COUNT disagree (valgrind,
-// on inputs the mesh_read fuzz target found; tests/fuzz/regressions/mesh_read).
+// A PCD header, read and checked here in full, and its body read here too: PCL 1.13 sizes its
+// buffers from WIDTH x HEIGHT, allocates what a compressed body's first word claims, its
+// ASCII reader writes past its buffer when FIELDS, SIZE, TYPE and COUNT disagree (valgrind),
+// and its binary reader used freed memory on a header repeated after DATA (both found by the
+// mesh_read fuzz target; tests/fuzz/regressions/mesh_read). PCL now only writes PCD here.
 struct PcdHeader {
   struct Field {
     std::string name;
@@ -179,6 +180,12 @@ PcdHeader ReadHeader(const std::filesystem::path& path, std::uint64_t file_bytes
       throw InputError(source + ": binary_compressed body claims " + std::to_string(compressed) +
                        " compressed bytes, but holds " + std::to_string(body - 8));
     }
+    if (points * h.point_step > limits.max_file_bytes) {
+      throw InputError(source + ": binary_compressed body of " + std::to_string(points) +
+                       " points of " + std::to_string(h.point_step) +
+                       " bytes decompresses to more than the file limit of " +
+                       std::to_string(limits.max_file_bytes) + " bytes (--max-file-mib raises it)");
+    }
     if (uncompressed != points * h.point_step) {
       throw InputError(source + ": binary_compressed body claims " + std::to_string(uncompressed) +
                        " bytes uncompressed, but " + std::to_string(points) + " points of " +
@@ -241,38 +248,83 @@ PointCloud ReadAsciiBody(const std::filesystem::path& path, const PcdHeader& h,
   return cloud;
 }
 
-// True when @p name is one 4-byte float per point, as pcl::PointXYZ and pcl::Normal map it.
-bool IsFloatField(const pcl::PCLPointCloud2& blob, const char* name) {
-  return std::any_of(blob.fields.begin(), blob.fields.end(), [name](const pcl::PCLPointField& f) {
-    return f.name == name && f.datatype == pcl::PCLPointField::FLOAT32 && f.count == 1;
-  });
-}
-
-// What PCL read must be what its header declared before pcl::fromPCLPointCloud2 indexes into
-// it: PCL accepts a header with a garbled SIZE line and then reads no data.
-void CheckBlob(const std::string& source, const pcl::PCLPointCloud2& blob) {
-  const std::uint64_t expected =
-      std::uint64_t{blob.width} * blob.height * std::uint64_t{blob.point_step};
-  if (blob.point_step == 0 || blob.data.size() != expected) {
-    throw InputError(source + ": PCD body of " + std::to_string(blob.data.size()) +
-                     " bytes, where the header declares " + std::to_string(blob.width) + " x " +
-                     std::to_string(blob.height) + " points of " + std::to_string(blob.point_step) +
-                     " bytes");
-  }
-  for (const pcl::PCLPointField& f : blob.fields) {
-    const std::uint64_t bytes = static_cast<std::uint64_t>(pcl::getFieldSize(f.datatype)) *
-                                std::max<std::uint64_t>(f.count, 1);
-    if (bytes == 0 || std::uint64_t{f.offset} + bytes > blob.point_step) {
-      throw InputError(source + ": PCD field '" + Excerpt(f.name) +
-                       "' does not fit in a point of " + std::to_string(blob.point_step) +
-                       " bytes");
+// The binary bodies, read here too: PCL 1.13's reader used freed memory on a binary file
+// whose header text repeats after the DATA line (the mesh_read fuzz target, a 600 s run).
+// "binary" stores each point's fields in turn; "binary_compressed" is LZF (pcl::lzfDecompress,
+// which checks its bounds) over the fields stored one after another, each for every point.
+PointCloud ReadBinaryBody(const std::filesystem::path& path, const PcdHeader& h,
+                          const ReadLimits& limits) {
+  const std::string source = path.string();
+  const std::string file = internal::ReadFileBounded(path, limits.max_file_bytes);
+  const std::uint64_t need = h.points * h.point_step;
+  std::string decompressed;
+  const char* body = file.data() + h.header_bytes;
+  if (h.data == "binary") {
+    if (file.size() < h.header_bytes + need) {
+      throw InputError(source + ": PCD binary body of " +
+                       std::to_string(file.size() - std::min<std::uint64_t>(file.size(), h.header_bytes)) +
+                       " bytes, where the header declares " + std::to_string(h.points) +
+                       " points of " + std::to_string(h.point_step) + " bytes");
     }
-  }
-  for (const char* name : {"x", "y", "z"}) {
-    if (!IsFloatField(blob, name)) {
-      throw InputError(source + ": PCD field " + name + " is not one float (SIZE 4, TYPE F)");
+  } else {
+    // ReadHeader checked both size words against the header and the file.
+    std::uint32_t compressed = 0;
+    std::memcpy(&compressed, body, 4);
+    decompressed.resize(need);
+    const unsigned int got =
+        need == 0 ? 0
+                  : pcl::lzfDecompress(body + 8, compressed, decompressed.data(),
+                                       static_cast<unsigned int>(need));
+    if (got != need) {
+      throw InputError(source + ": PCD binary_compressed body does not decompress to the " +
+                       std::to_string(need) + " bytes its header declares");
     }
+    body = decompressed.data();
   }
+  // Where field f of point i lies: binary, i * point_step + offset[f]; compressed,
+  // offset[f] * points + i * (its bytes per point).
+  const bool columns = h.data == "binary_compressed";
+  auto find = [&](const char* name) -> const PcdHeader::Field* {
+    for (const PcdHeader::Field& f : h.fields)
+      if (f.name == name) return &f;
+    return nullptr;
+  };
+  auto offset_of = [&](const PcdHeader::Field* field) {
+    std::uint64_t offset = 0;
+    for (const PcdHeader::Field& f : h.fields) {
+      if (&f == field) break;
+      offset += f.size * f.count;
+    }
+    return offset;
+  };
+  auto reader = [&](const char* name) -> std::function<float(std::uint64_t)> {
+    const PcdHeader::Field* f = find(name);
+    if (f == nullptr || f->type != 'F' || f->size != 4 || f->count != 1) return nullptr;
+    const std::uint64_t offset = offset_of(f);
+    return [=, &h](std::uint64_t i) {
+      float v;
+      std::memcpy(&v, body + (columns ? offset * h.points + 4 * i : i * h.point_step + offset), 4);
+      return v;
+    };
+  };
+  const auto x = reader("x"), y = reader("y"), z = reader("z");
+  const auto nx = reader("normal_x"), ny = reader("normal_y"), nz = reader("normal_z");
+  const bool with_normals = nx && ny && nz;
+  PointCloud cloud;
+  const auto n = static_cast<Eigen::Index>(h.points);
+  cloud.points.resize(3, n);
+  if (with_normals) cloud.normals.resize(3, n);
+  Eigen::Index kept = 0;
+  for (std::uint64_t i = 0; i < h.points; ++i) {
+    const Eigen::Vector3d p(x(i), y(i), z(i));
+    if (!p.allFinite()) continue;
+    cloud.points.col(kept) = p;
+    if (with_normals) cloud.normals.col(kept) = Eigen::Vector3d(nx(i), ny(i), nz(i));
+    ++kept;
+  }
+  cloud.points.conservativeResize(3, kept);
+  if (with_normals) cloud.normals.conservativeResize(3, kept);
+  return cloud;
 }
 
 }  // namespace
@@ -289,48 +341,7 @@ PointCloud ReadPcd(const std::filesystem::path& path, const ReadLimits& limits) 
   }
   const PcdHeader header = ReadHeader(path, file_bytes, limits);
   if (header.data == "ascii") return ReadAsciiBody(path, header, limits);
-  pcl::PCDReader reader;
-  pcl::PCLPointCloud2 blob;
-  Eigen::Vector4f origin;
-  Eigen::Quaternionf orientation;
-  int version = 0;
-  int data_type = 0;
-  unsigned int data_index = 0;
-  // PCL throws (std::out_of_range, pcl::PCLException) on some inconsistent headers.
-  try {
-    if (reader.readHeader(source, blob, origin, orientation, version, data_type, data_index) < 0) {
-      throw InputError(source + ": malformed PCD header");
-    }
-    if (reader.read(source, blob) < 0) throw InputError(source + ": malformed PCD body");
-  } catch (const InputError&) {
-    throw;
-  } catch (const std::exception& e) {
-    throw InputError(source + ": malformed PCD file (" + Excerpt(e.what(), 120) + ")");
-  }
-  CheckBlob(source, blob);
-  // No points: PCL's conversion would index into an empty cloud. ReadCloud names the file.
-  if (blob.data.empty()) return PointCloud{};
-  pcl::PointCloud<pcl::PointXYZ> xyz;
-  pcl::fromPCLPointCloud2(blob, xyz);
-  const bool with_normals = IsFloatField(blob, "normal_x") && IsFloatField(blob, "normal_y") &&
-                            IsFloatField(blob, "normal_z");
-  pcl::PointCloud<pcl::Normal> normals;
-  if (with_normals) pcl::fromPCLPointCloud2(blob, normals);
-
-  PointCloud cloud;
-  cloud.points.resize(3, static_cast<Eigen::Index>(xyz.size()));
-  if (with_normals) cloud.normals.resize(3, static_cast<Eigen::Index>(xyz.size()));
-  Eigen::Index kept = 0;
-  for (std::size_t i = 0; i < xyz.size(); ++i) {
-    const Eigen::Vector3d p = xyz[i].getVector3fMap().cast<double>();
-    if (!p.allFinite()) continue;
-    cloud.points.col(kept) = p;
-    if (with_normals) cloud.normals.col(kept) = normals[i].getNormalVector3fMap().cast<double>();
-    ++kept;
-  }
-  cloud.points.conservativeResize(3, kept);
-  if (with_normals) cloud.normals.conservativeResize(3, kept);
-  return cloud;
+  return ReadBinaryBody(path, header, limits);
 }
 
 void WritePcd(const std::filesystem::path& path, const PointCloud& cloud) {

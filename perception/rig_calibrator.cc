@@ -474,46 +474,97 @@ RigCheckResult CheckRigWithTarget(const RigCalibration& rig, const CalibrationTa
     for (const SphereSighting& s : sightings[c])
       centre[c][static_cast<std::size_t>(s.sphere)] = rig.cameras[c].X_RigCam * s.centre_C;
   }
-  RigCheckResult result;
-  result.cameras.resize(cameras);
-  for (std::size_t c = 0; c < cameras; ++c) {
-    CameraCheck& check = result.cameras[c];
-    check.sightings = static_cast<int>(sightings[c].size());
+  // How camera c must move to put the spheres where the cameras in @p others (their mean)
+  // do; false when they share fewer than 3 spheres.
+  auto offset = [&](std::size_t c, const std::vector<std::size_t>& others, PoseChange* change) {
     std::vector<Eigen::Vector3d> mine, theirs;
     for (std::size_t s = 0; s < spheres; ++s) {
       if (!centre[c][s].allFinite()) continue;
-      std::vector<double> coords[3];
-      for (std::size_t d = 0; d < cameras; ++d) {
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      int count = 0;
+      for (std::size_t d : others) {
         if (d == c || !centre[d][s].allFinite()) continue;
-        for (int k = 0; k < 3; ++k) coords[k].push_back(centre[d][s][k]);
+        sum += centre[d][s];
+        ++count;
       }
-      if (coords[0].empty()) continue;
-      Eigen::Vector3d median;
-      for (int k = 0; k < 3; ++k) {
-        std::vector<double>& v = coords[k];
-        std::sort(v.begin(), v.end());
-        const std::size_t m = v.size();
-        median[k] = m % 2 ? v[m / 2] : 0.5 * (v[m / 2 - 1] + v[m / 2]);
-      }
+      if (count == 0) continue;
       mine.push_back(centre[c][s]);
-      theirs.push_back(median);
+      theirs.push_back(sum / count);
     }
-    if (mine.size() < 3) continue;
+    if (mine.size() < 3) return false;
     Eigen::Matrix3Xd from(3, static_cast<Eigen::Index>(mine.size())), to(3, from.cols());
     for (std::size_t i = 0; i < mine.size(); ++i) {
       from.col(static_cast<Eigen::Index>(i)) = mine[i];
       to.col(static_cast<Eigen::Index>(i)) = theirs[i];
     }
-    const Eigen::Isometry3d correction = Kabsch(from, to);
     const Eigen::Isometry3d& X = rig.cameras[c].X_RigCam;
-    const PoseChange change = PoseDifference(X, correction * X);
+    *change = PoseDifference(X, Kabsch(from, to) * X);
+    return true;
+  };
+  auto within = [&](const PoseChange& k) {
+    return k.translation_m * 1000 <= options.max_offset_mm && k.rotation_deg <= options.max_turn_deg;
+  };
+  // Which pairs agree, and which cameras could be compared with any other.
+  std::vector<std::vector<bool>> agree(cameras, std::vector<bool>(cameras, false));
+  std::vector<std::size_t> comparable;
+  for (std::size_t c = 0; c < cameras; ++c) {
+    bool any = false;
+    for (std::size_t d = 0; d < cameras; ++d) {
+      PoseChange k;
+      if (d == c || !offset(c, {d}, &k)) continue;
+      any = true;
+      agree[c][d] = within(k);
+    }
+    if (any) comparable.push_back(c);
+  }
+  for (std::size_t c = 0; c < cameras; ++c)
+    for (std::size_t d = 0; d < cameras; ++d) agree[c][d] = agree[c][d] && agree[d][c];
+  // The largest group of cameras that all agree with one another (greedy from each camera:
+  // drop the member that agrees with the fewest until every pair agrees).
+  std::vector<std::size_t> group;
+  for (std::size_t c : comparable) {
+    std::vector<std::size_t> g = {c};
+    for (std::size_t d : comparable)
+      if (agree[c][d]) g.push_back(d);
+    for (bool clique = false; !clique;) {
+      clique = true;
+      std::size_t worst = 0;
+      int fewest = 1 << 30;
+      for (std::size_t i = 0; i < g.size(); ++i) {
+        int n = 0;
+        for (std::size_t j = 0; j < g.size(); ++j) n += i == j || agree[g[i]][g[j]];
+        if (n < static_cast<int>(g.size())) clique = false;
+        if (n < fewest) {
+          fewest = n;
+          worst = i;
+        }
+      }
+      if (!clique) g.erase(g.begin() + static_cast<long>(worst));
+    }
+    if (g.size() > group.size()) group = g;
+  }
+  // A strict majority of the comparable cameras that agree is the reference; without one
+  // (two cameras that disagree, a split), every camera is judged against all the others.
+  const bool majority = group.size() >= 2 && 2 * group.size() > comparable.size();
+  const std::vector<std::size_t>& reference = majority ? group : comparable;
+
+  RigCheckResult result;
+  result.cameras.resize(cameras);
+  for (std::size_t c = 0; c < cameras; ++c) {
+    CameraCheck& check = result.cameras[c];
+    check.sightings = static_cast<int>(sightings[c].size());
+    PoseChange k;
+    if (std::find(comparable.begin(), comparable.end(), c) == comparable.end() ||
+        !offset(c, reference, &k))
+      continue;
     check.compared = true;
-    check.offset_mm = change.translation_m * 1000;
-    check.turn_deg = change.rotation_deg;
-    check.moved = check.offset_mm > options.max_offset_mm || check.turn_deg > options.max_turn_deg;
+    check.offset_mm = k.translation_m * 1000;
+    check.turn_deg = k.rotation_deg;
+    const bool in_group = std::find(group.begin(), group.end(), c) != group.end();
+    check.moved = !within(k) || (majority && !in_group);
     ++result.compared;
   }
-  result.ok = result.compared >= 3 &&
+  result.ok = result.compared >= 2 &&
               std::none_of(result.cameras.begin(), result.cameras.end(),
                            [](const CameraCheck& c) { return c.moved; });
   return result;

@@ -130,7 +130,7 @@ struct CameraCheck {
 };
 
 struct RigCheckOptions {
-  /// A 5 mm or 1 degree move must be flagged; averaged sightings agree within about 0.5 mm
+  /// A 5 mm or 1 degree move must be flagged; averaged sightings agree within about 1.5 mm
   /// and 0.05 degree on the virtual rig (rig_calibrator_test prints them).
   double max_offset_mm = 2.5;
   double max_turn_deg = 0.5;
@@ -139,13 +139,18 @@ struct RigCheckOptions {
 struct RigCheckResult {
   std::vector<CameraCheck> cameras;
   int compared = 0;   ///< cameras that could be compared
-  bool ok = false;    ///< at least 3 compared and none moved
+  /// At least 2 compared and none moved. With 2 a move shows on both (which one moved
+  /// cannot be told); with 3 or more the others' median pins it on the one that moved.
+  bool ok = false;
 };
 
 /// Cross-camera consistency on the target (any pose): each camera's sphere centres, put in
-/// the rig frame by its calibration, against the others' for the same spheres (their median,
-/// so one moved camera does not drag the rest), fitted by a rigid transform: how far and how
-/// much that camera would have to move to agree. @p sightings: per camera, in rig order.
+/// the rig frame by its calibration, against the others' for the same spheres, fitted by a
+/// rigid transform: how far and how much that camera would have to move to agree. The
+/// reference is the largest group of cameras that agree pairwise within the limits, when it
+/// is a strict majority of the cameras compared (so one moved camera of three or more is
+/// pinned and does not drag the rest); without a majority each camera is judged against all
+/// the others. @p sightings: per camera, in rig order.
 RigCheckResult CheckRigWithTarget(const RigCalibration& rig, const CalibrationTarget& target,
                                   const std::vector<std::vector<SphereSighting>>& sightings,
                                   const RigCheckOptions& options = {});

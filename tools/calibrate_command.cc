@@ -303,8 +303,10 @@ int RunCheckRig(const CheckRigOptions& options) {
                 rig.cameras[c].serial.c_str(), k.sightings, k.offset_mm, k.turn_deg,
                 k.moved ? "MOVED: recalibrate" : "ok");
   }
+  if (check.compared == 2 && !check.ok)
+    std::printf("with 2 cameras compared a move shows on both: which one moved cannot be told\n");
   std::printf("%s (limits %.1f mm, %.2f deg; %d cameras compared)\n",
-              check.ok ? "rig ok" : check.compared < 3 ? "rig not checked: fewer than 3 cameras compared"
+              check.ok ? "rig ok" : check.compared < 2 ? "rig not checked: fewer than 2 cameras compared"
                                                       : "rig moved",
               options.max_offset_mm, options.max_turn_deg, check.compared);
   return check.ok ? 0 : 3;

@@ -68,7 +68,7 @@ struct CheckRigOptions {
   double max_turn_deg = 0.5;
 };
 /// `vbutcher check-rig`: with the target on the hook, each camera against the others.
-/// @return 0 when every camera agrees, 3 when one moved or fewer than 3 could be compared.
+/// @return 0 when every camera agrees, 3 when one moved or fewer than 2 could be compared.
 int RunCheckRig(const CheckRigOptions& options);
 
 }  // namespace vb::tools

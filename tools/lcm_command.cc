@@ -121,15 +121,20 @@ struct Listener {
                 m.state >= 0 && m.state < 5 ? kStates[m.state] : "unknown", m.version.c_str(),
                 m.state_text.c_str());
     const std::int64_t now = NowMicros();
+    static const char* kRig[] = {"NOT_CHECKED", "OK", "MOVED", "NOT_COMPARED"};
     for (const vbutcher::camera_health_t& c : m.cameras) {
-      std::printf("lcm-listen:   camera %s serial %s state %s fps %.1f valid %.2f last frame %s\n",
+      std::printf("lcm-listen:   camera %s serial %s state %s fps %.1f valid %.2f last frame %s; "
+                  "rig %s %.2f mm %.3f deg\n",
                   c.name.c_str(), c.serial.c_str(),
                   c.state >= 0 && c.state < 6 ? kHealth[c.state] : "unknown", c.fps,
                   c.valid_ratio,
                   c.last_frame_utime == 0
                       ? "never"
-                      : (std::to_string((now - c.last_frame_utime) / 1000) + " ms ago").c_str());
+                      : (std::to_string((now - c.last_frame_utime) / 1000) + " ms ago").c_str(),
+                  c.rig_check >= 0 && c.rig_check < 4 ? kRig[c.rig_check] : "unknown",
+                  c.rig_offset_mm, c.rig_turn_deg);
     }
+    std::printf("lcm-listen:   rig check: %s\n", m.rig_check.c_str());
   }
 
   void OnDiagnostic(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
@@ -168,6 +173,7 @@ int RunLcmPublish(const LcmPublishOptions& options) {
     status.state_text = "lcm-publish";
     status.num_cameras = 0;
     status.can_state = "none";
+    status.rig_check = "not checked yet";
     publisher.Publish(status);
     if (i + 1 < options.count)
       std::this_thread::sleep_for(std::chrono::milliseconds(options.period_ms));
