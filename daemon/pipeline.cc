@@ -150,7 +150,10 @@ void Pipeline::Stop() {
   saw_->Close();  // first: nothing goes to the saw once shutdown has begun
   stop_ = true;   // a morph under way sees it at its next solver iteration
   slot_cv_.notify_all();
-  collect_cv_.notify_all();
+  {
+    std::lock_guard<std::mutex> lock(collect_mutex_);  // so the check's wait cannot miss it
+    collect_cv_.notify_all();
+  }
   if (capture_thread_.joinable()) capture_thread_.join();
   if (job_thread_.joinable()) job_thread_.join();
   if (rig_check_thread_.joinable()) rig_check_thread_.join();
@@ -200,7 +203,22 @@ void Pipeline::CollectForRigCheck(const perception::RigCapture& capture) {
 }
 
 void Pipeline::RigCheck() {
-  const MemoryBudgetScope budget;
+  // Not a loop thread: an occasional check allocates from the ordinary heap, not the arena.
+  try {
+    RigCheckOnce();
+  } catch (const std::exception& e) {
+    const std::string what = std::string("rig check failed: ") + e.what();
+    {
+      std::lock_guard<std::mutex> lock(state_mutex_);
+      rig_check_line_ = what;
+    }
+    Log(Priority::kError, "%s", what.c_str());
+    Diagnose(vbutcher::diagnostic_t::ERROR, "rig_check", what);
+  }
+  rig_check_running_ = false;
+}
+
+void Pipeline::RigCheckOnce() {
   const RigCheckSection& options = config_.rig_check;
   const std::size_t n = config_.rig.cameras.size();
   RigCheckFrames r;
@@ -227,12 +245,10 @@ void Pipeline::RigCheck() {
                          [&] { return collect_done_ || stop_; });
     collect_ = nullptr;
   }
-  if (stop_) {
-    rig_check_running_ = false;
-    return;
-  }
+  if (stop_) return;
   std::vector<std::vector<perception::SphereSighting>> sightings(n);
   for (std::size_t c = 0; c < n; ++c) {
+    if (stop_) return;
     if (r.filled[c] == 0) continue;
     const std::span<const std::vector<std::uint16_t>> taken(r.frames[c].data(),
                                                              static_cast<std::size_t>(r.filled[c]));
@@ -282,8 +298,8 @@ void Pipeline::RigCheck() {
     } else {
       line = "MOVED at ";
       line.append(when).append(": ").append(moved).append(
-          "; jobs are refused: recalibrate (vbutcher calibrate rig), or put it back and check "
-          "again (SIGUSR1)");
+          "; jobs are refused: recalibrate (vbutcher calibrate rig) and restart the service, or "
+          "put the camera back and check again (SIGUSR1)");
     }
     rig_moved_ = !moved.empty();
   }
@@ -296,7 +312,6 @@ void Pipeline::RigCheck() {
   Log(bad ? Priority::kWarning : Priority::kInfo, "rig check: %s", line.c_str());
   Diagnose(bad ? vbutcher::diagnostic_t::WARNING : vbutcher::diagnostic_t::INFO, "rig_check",
            line);
-  rig_check_running_ = false;
 }
 
 void Pipeline::CaptureLoop() {

@@ -94,7 +94,8 @@ class Pipeline {
   void CaptureLoop();
   void JobLoop();
   struct RigCheckFrames;
-  void RigCheck();                                                 // its own thread, once
+  void RigCheck();       // its own thread, once: RigCheckOnce, its failure logged
+  void RigCheckOnce();
   void CollectForRigCheck(const perception::RigCapture& capture);  // the capture thread's
   void RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
               std::int64_t frames_ns, std::int64_t frames_utime, double fusion_s,

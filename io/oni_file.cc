@@ -131,6 +131,21 @@ OniSummary CheckOniFile(const std::filesystem::path& path, const ReadLimits& lim
     throw fail(0, "not an OpenNI recording (no \"NI10\" at its start)");
   summary.version_major = static_cast<std::uint8_t>(header[4]);
   summary.version_minor = static_cast<std::uint8_t>(header[5]);
+  // Files before 1.0.1 lay records out otherwise (24-byte headers, 32-bit positions); OpenNI2
+  // reads them, so a walk of this layout would check other bytes than it reads: refused.
+  const auto maintenance = static_cast<std::uint16_t>(static_cast<std::uint8_t>(header[6]) |
+                                                      static_cast<std::uint8_t>(header[7]) << 8);
+  if (summary.version_major != 1 || summary.version_minor != 0 || maintenance != 1) {
+    throw fail(4, "recording format " + std::to_string(summary.version_major) + "." +
+                      std::to_string(summary.version_minor) + "." + std::to_string(maintenance) +
+                      " (only 1.0.1, what OpenNI2 writes, is read)");
+  }
+  // OpenNI2 sizes a table of streams from this before it reads a record.
+  const std::uint32_t max_node_id = ReadU32(header + 20);
+  if (max_node_id > kMaxOniNodes) {
+    throw fail(20, "a largest stream id of " + std::to_string(max_node_id) + " (at most " +
+                       std::to_string(kMaxOniNodes) + ")");
+  }
 
   // Data records by (node, offset), and the seek tables and node-added pointers to them,
   // checked once every record is known.
@@ -182,6 +197,10 @@ OniSummary CheckOniFile(const std::filesystem::path& path, const ReadLimits& lim
       throw fail(at, "cannot be read");
     std::string problem;
     Fields f(fields_bytes, &problem);
+    if (type != kEnd && node > max_node_id) {
+      throw fail(at, "a record for stream " + std::to_string(node) +
+                         ", above the header's largest stream id " + std::to_string(max_node_id));
+    }
     OniNode* owner = node_of(node);
     const bool adds = type == kNodeAdded || type == kNodeAdded_1_0_0_4 || type == kNodeAdded_1_0_0_5;
     if (!adds && type != kEnd && owner == nullptr)

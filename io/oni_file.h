@@ -36,7 +36,8 @@ inline constexpr std::uint32_t kMaxOniPayloadBytes = 16 * 1024 * 1024;  ///< one
 inline constexpr int kMaxOniImageSide = 4096;                         ///< pixels
 
 /// Walks every record of the .oni file @p path before OpenNI2's player reads it, OpenNI2
-/// trusting what the file says: the file header ("NI10"), each record's magic, type, node,
+/// trusting what the file says: the file header ("NI10", format 1.0.1, the largest stream id
+/// at most kMaxOniNodes), each record's magic, type, node,
 /// field and payload sizes (inside the file and within the bounds above), every string and
 /// property inside its record, each node added once, streams' resolutions and frame sizes,
 /// seek tables pointing at data records of their own node, and an end record. Bytes after

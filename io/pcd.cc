@@ -141,6 +141,10 @@ PcdHeader ReadHeader(const std::filesystem::path& path, std::uint64_t file_bytes
     }
   }
   if (!has_height) h.height = 1;
+  CheckLimit(source, "points wide", static_cast<std::int64_t>(h.width), limits.max_points,
+             "--max-points");
+  CheckLimit(source, "points high", static_cast<std::int64_t>(h.height), limits.max_points,
+             "--max-points");
   const std::uint64_t points = h.width * h.height;
   if (has_points && h.points != points) {
     throw InputError(source + ": PCD POINTS " + std::to_string(h.points) +
@@ -267,9 +271,13 @@ PointCloud ReadBinaryBody(const std::filesystem::path& path, const PcdHeader& h,
                        " points of " + std::to_string(h.point_step) + " bytes");
     }
   } else {
-    // ReadHeader checked both size words against the header and the file.
+    // ReadHeader checked both size words against the header and the file as it was then;
+    // the file is read again here, so they are checked against what was read.
+    const std::string changed = source + ": PCD binary_compressed body changed while it was read";
+    if (file.size() < h.header_bytes + 8) throw InputError(changed);
     std::uint32_t compressed = 0;
     std::memcpy(&compressed, body, 4);
+    if (file.size() - h.header_bytes - 8 < compressed) throw InputError(changed);
     decompressed.resize(need);
     const unsigned int got =
         need == 0 ? 0

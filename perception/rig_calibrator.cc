@@ -268,6 +268,32 @@ std::vector<SphereSighting> FindTargetSpheres(const Eigen::Matrix3Xd& points_C,
       *same = sighting;
     }
   }
+  // Spheres found elsewhere (a carcass's curvature can pass for one) do not keep the target's
+  // distances: while some pair is off by more than kShapeToleranceM, drop the sighting in
+  // the most such pairs (the one with fewer points on a tie).
+  constexpr double kShapeToleranceM = 0.01;
+  for (;;) {
+    std::vector<int> bad(found.size(), 0);
+    int worst = -1;
+    for (std::size_t i = 0; i < found.size(); ++i) {
+      for (std::size_t j = 0; j < i; ++j) {
+        const double seen = (found[i].centre_C - found[j].centre_C).norm();
+        const double known = (target.spheres[static_cast<std::size_t>(found[i].sphere)].centre_T -
+                              target.spheres[static_cast<std::size_t>(found[j].sphere)].centre_T)
+                                 .norm();
+        if (std::abs(seen - known) > kShapeToleranceM) ++bad[i], ++bad[j];
+      }
+    }
+    for (std::size_t i = 0; i < found.size(); ++i) {
+      if (bad[i] == 0) continue;
+      if (worst < 0 || bad[i] > bad[static_cast<std::size_t>(worst)] ||
+          (bad[i] == bad[static_cast<std::size_t>(worst)] &&
+           found[i].points < found[static_cast<std::size_t>(worst)].points))
+        worst = static_cast<int>(i);
+    }
+    if (worst < 0) break;
+    found.erase(found.begin() + worst);
+  }
   std::sort(found.begin(), found.end(),
             [](const SphereSighting& a, const SphereSighting& b) { return a.sphere < b.sphere; });
   return found;
@@ -366,6 +392,8 @@ RigSolveResult SolveRigCalibration(const RigCalibration& start, const Calibratio
   options.logging_type = ceres::SILENT;
   ceres::Solver::Summary summary;
   ceres::Solve(options, &problem, &summary);
+  if (!summary.IsSolutionUsable())
+    throw InputError("rig calibration: the solver failed (" + summary.message + ")");
 
   RigSolveResult result;
   result.rig = start;
@@ -554,9 +582,10 @@ RigCheckResult CheckRigWithTarget(const RigCalibration& rig, const CalibrationTa
     CameraCheck& check = result.cameras[c];
     check.sightings = static_cast<int>(sightings[c].size());
     PoseChange k;
-    if (std::find(comparable.begin(), comparable.end(), c) == comparable.end() ||
-        !offset(c, reference, &k))
-      continue;
+    if (std::find(comparable.begin(), comparable.end(), c) == comparable.end()) continue;
+    // A camera outside the majority that shares too little with it is judged against every
+    // camera it can be compared with (and, outside the majority, flagged all the same).
+    if (!offset(c, reference, &k) && !offset(c, comparable, &k)) continue;
     check.compared = true;
     check.offset_mm = k.translation_m * 1000;
     check.turn_deg = k.rotation_deg;

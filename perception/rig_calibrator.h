@@ -49,7 +49,8 @@ struct SphereSearchOptions {
 /// Finds the target's spheres in one camera's points (@p points_C, camera frame): RANSAC
 /// sphere fits (PCL) on the points near the hook by @p X_RigCam_nominal, each named by the
 /// known radius nearest its fitted one, then refined with that radius by Gauss-Newton on
-/// its inliers. A radius seen twice keeps the sighting with more points.
+/// its inliers. A radius seen twice keeps the sighting with more points; sightings whose
+/// centres do not keep the target's distances (within 10 mm) are dropped, worst first.
 std::vector<SphereSighting> FindTargetSpheres(const Eigen::Matrix3Xd& points_C,
                                               const Eigen::Isometry3d& X_RigCam_nominal,
                                               const CalibrationTarget& target,

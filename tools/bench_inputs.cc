@@ -1,6 +1,7 @@
 #include "tools/bench_inputs.h"
 
 #include <pcl/io/pcd_io.h>
+#include <malloc.h>
 #include <pcl/point_types.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -46,8 +47,16 @@ struct Reading {
 Reading MeasureInChild(const std::function<std::string()>& reader) {
   int fds[2];
   if (pipe(fds) != 0) throw std::runtime_error("bench inputs: pipe failed");
+  // What the parent freed goes back to the OS first, so the child's reads fault in pages of
+  // their own and show in its peak.
+  std::fflush(nullptr);
+  malloc_trim(0);
   const pid_t pid = fork();
-  if (pid < 0) throw std::runtime_error("bench inputs: fork failed");
+  if (pid < 0) {
+    close(fds[0]);
+    close(fds[1]);
+    throw std::runtime_error("bench inputs: fork failed");
+  }
   if (pid == 0) {
     close(fds[0]);
     const long before = io::ProcessStatusKib("VmRSS");
@@ -80,7 +89,9 @@ Reading MeasureInChild(const std::function<std::string()>& reader) {
   Reading r;
   std::istringstream in(report);
   if (!(WIFEXITED(status) && WEXITSTATUS(status) == 0) || !(in >> r.seconds >> r.peak_kib)) {
-    r.outcome = "FAILED: the reader died (status " + std::to_string(status) + ")";
+    r.outcome = WIFSIGNALED(status)
+                    ? "FAILED: the reader died of signal " + std::to_string(WTERMSIG(status))
+                    : "FAILED: the reader exited with " + std::to_string(WEXITSTATUS(status));
     return r;
   }
   in.get();
@@ -337,7 +348,7 @@ std::vector<Case> Cases(double scale) {
       {"template_archive", "a template archive at the file limit (one section)",
        [file_bytes](const std::filesystem::path& p) {
          io::ArchiveWriter writer("vbutcher-template", morph::TemplateArtifact::kVersion);
-         const auto values = static_cast<Eigen::Index>((file_bytes - 4096) / 8);
+         const auto values = static_cast<Eigen::Index>(std::max<std::uint64_t>(file_bytes, 8192) / 8 - 512);
          writer.Put("mesh.V", Eigen::MatrixXd(Eigen::MatrixXd::Constant(1, values, 0.5)));
          writer.Save(p);
        },

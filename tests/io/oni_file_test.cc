@@ -145,6 +145,14 @@ TEST_F(OniFileTest, HeadersAndRecordBoundsAreChecked) {
   std::string other = Ended(Sound());
   other[3] = '1';
   EXPECT_THAT(Refusal(other), HasSubstr("no \"NI10\""));
+  // An older layout (24-byte record headers), and a header that would size a table of 2^24
+  // streams.
+  std::string older = Ended(Sound());
+  older[6] = 0;
+  EXPECT_THAT(Refusal(older), HasSubstr("at byte 4: recording format 1.0.0 (only 1.0.1"));
+  std::string streams = Ended(Sound());
+  streams[23] = 1;
+  EXPECT_THAT(Refusal(streams), HasSubstr("at byte 20: a largest stream id of 16777217 (at most 16)"));
   // The file cut inside the second frame.
   const Recording r = Sound();
   EXPECT_THAT(Refusal(r.b.bytes().substr(0, r.frame2 + 200)),
@@ -191,7 +199,11 @@ TEST_F(OniFileTest, WhatThePlayerAllocatesFromIsBounded) {
 TEST_F(OniFileTest, NodesAndSeekTablesMustAgree) {
   Recording stray = Sound();
   stray.b.Record(0x0A, 7, Frame(66, 3), "zz");
-  EXPECT_THAT(Refusal(Ended(stray)), HasSubstr("node 7, which was never added"));
+  EXPECT_THAT(Refusal(Ended(stray)), HasSubstr("stream 7, above the header's largest stream id 1"));
+  Recording unadded = Sound();
+  unadded.b.bytes()[20] = 2;  // the header allows stream 2, which is never added
+  unadded.b.Record(0x0A, 2, Frame(66, 3), "zz");
+  EXPECT_THAT(Refusal(Ended(unadded)), HasSubstr("node 2, which was never added"));
   Recording twice = Sound();
   twice.b.Record(0x0D, 1, NodeAdded(0), "");
   EXPECT_THAT(Refusal(Ended(twice)), HasSubstr("node 1 added twice"));

@@ -86,6 +86,27 @@ TEST(FindTargetSpheresTest, FindsAndNamesEverySphereInOneNoisyView) {
   }
 }
 
+// Something round that is not the target (here an 80 mm sphere where the target has none,
+// and no 80 mm sphere where it has one) is found, named by its radius, and dropped: its
+// distances to the other spheres are not the target's.
+TEST(FindTargetSpheresTest, DropsASphereThatDoesNotKeepTheTargetsDistances) {
+  CalibrationTarget target = DefaultCalibrationTarget();
+  CalibrationTarget seen = target;
+  seen.spheres[1].centre_T = Eigen::Vector3d(-0.25, 0.1, -0.9);  // not where the target has it
+  seen.rod_radius_m = 0;
+  const RigCalibration rig = MakeRingRig({});
+  const CameraCalibration& cam = rig.cameras[0];
+  DepthRenderer renderer(cam.intrinsics, cam.X_RigCam);
+  renderer.Render(TargetMesh(seen), -2.2);
+  std::vector<std::uint16_t> depth(renderer.depth_m().size());
+  DepthNoise(DepthNoiseOptions{}, 4).Apply(renderer.depth_m(), renderer.cos_incidence(),
+                                           cam.intrinsics.width, cam.intrinsics.height, &depth);
+  const auto found = FindTargetSpheres(DepthToPoints(depth, cam.intrinsics), cam.X_RigCam, target);
+  ASSERT_EQ(found.size(), 2u);
+  EXPECT_EQ(found[0].sphere, 0);
+  EXPECT_EQ(found[1].sphere, 2);
+}
+
 // The whole procedure on the virtual rig: the target hung in 3 positions (turned on the
 // hook), each captured through OpenNI2 and averaged over 10 frames, the cameras' poses
 // started 40 mm and 3 degrees off.
