@@ -246,17 +246,13 @@ void Pipeline::RigCheckOnce() {
     collect_ = nullptr;
   }
   if (stop_) return;
-  std::vector<std::vector<perception::SphereSighting>> sightings(n);
+  std::vector<std::vector<std::uint16_t>> averaged(n);
   for (std::size_t c = 0; c < n; ++c) {
-    if (stop_) return;
-    if (r.filled[c] == 0) continue;
-    const std::span<const std::vector<std::uint16_t>> taken(r.frames[c].data(),
-                                                             static_cast<std::size_t>(r.filled[c]));
-    const perception::CameraCalibration& camera = config_.rig.cameras[c];
-    sightings[c] = perception::FindTargetSpheres(
-        perception::DepthToPoints(perception::AverageDepth(taken), camera.intrinsics),
-        camera.X_RigCam, options.target);
+    averaged[c] = perception::AverageDepth(std::span<const std::vector<std::uint16_t>>(
+        r.frames[c].data(), static_cast<std::size_t>(r.filled[c])));
   }
+  const auto sightings = perception::FindTargetInViews(config_.rig, averaged, options.target);
+  if (stop_) return;
   perception::RigCheckOptions limits;
   limits.max_offset_mm = options.max_offset_mm;
   limits.max_turn_deg = options.max_turn_deg;

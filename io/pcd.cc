@@ -7,7 +7,6 @@
 #include <algorithm>
 #include <charconv>
 #include <cstring>
-#include <functional>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -289,34 +288,33 @@ PointCloud ReadBinaryBody(const std::filesystem::path& path, const PcdHeader& h,
     }
     body = decompressed.data();
   }
-  // Where field f of point i lies: binary, i * point_step + offset[f]; compressed,
-  // offset[f] * points + i * (its bytes per point).
-  const bool columns = h.data == "binary_compressed";
-  auto find = [&](const char* name) -> const PcdHeader::Field* {
-    for (const PcdHeader::Field& f : h.fields)
-      if (f.name == name) return &f;
-    return nullptr;
+  // Where a float field of point i lies: binary, i * point_step + its offset; compressed,
+  // its offset * points + 4 i (each field stored for every point in turn).
+  struct FloatField {
+    const char* at = nullptr;  // null: no such one-float field
+    std::uint64_t stride = 0;
+    explicit operator bool() const { return at != nullptr; }
+    float operator()(std::uint64_t i) const {
+      float v;
+      std::memcpy(&v, at + i * stride, 4);
+      return v;
+    }
   };
-  auto offset_of = [&](const PcdHeader::Field* field) {
+  const bool columns = h.data == "binary_compressed";
+  auto field = [&](const char* name) {
     std::uint64_t offset = 0;
     for (const PcdHeader::Field& f : h.fields) {
-      if (&f == field) break;
+      if (f.name == name) {
+        if (f.type != 'F' || f.size != 4 || f.count != 1) break;
+        return columns ? FloatField{body + offset * h.points, 4}
+                       : FloatField{body + offset, h.point_step};
+      }
       offset += f.size * f.count;
     }
-    return offset;
+    return FloatField{};
   };
-  auto reader = [&](const char* name) -> std::function<float(std::uint64_t)> {
-    const PcdHeader::Field* f = find(name);
-    if (f == nullptr || f->type != 'F' || f->size != 4 || f->count != 1) return nullptr;
-    const std::uint64_t offset = offset_of(f);
-    return [=, &h](std::uint64_t i) {
-      float v;
-      std::memcpy(&v, body + (columns ? offset * h.points + 4 * i : i * h.point_step + offset), 4);
-      return v;
-    };
-  };
-  const auto x = reader("x"), y = reader("y"), z = reader("z");
-  const auto nx = reader("normal_x"), ny = reader("normal_y"), nz = reader("normal_z");
+  const FloatField x = field("x"), y = field("y"), z = field("z");
+  const FloatField nx = field("normal_x"), ny = field("normal_y"), nz = field("normal_z");
   const bool with_normals = nx && ny && nz;
   PointCloud cloud;
   const auto n = static_cast<Eigen::Index>(h.points);

@@ -299,6 +299,20 @@ std::vector<SphereSighting> FindTargetSpheres(const Eigen::Matrix3Xd& points_C,
   return found;
 }
 
+std::vector<std::vector<SphereSighting>> FindTargetInViews(
+    const RigCalibration& rig, const std::vector<std::vector<std::uint16_t>>& depth_mm,
+    const CalibrationTarget& target, const SphereSearchOptions& options) {
+  VB_DEMAND(depth_mm.size() == rig.cameras.size());
+  std::vector<std::vector<SphereSighting>> out(rig.cameras.size());
+  for (std::size_t c = 0; c < rig.cameras.size(); ++c) {
+    if (depth_mm[c].empty()) continue;
+    const CameraCalibration& camera = rig.cameras[c];
+    out[c] = FindTargetSpheres(DepthToPoints(depth_mm[c], camera.intrinsics), camera.X_RigCam,
+                               target, options);
+  }
+  return out;
+}
+
 PoseChange PoseDifference(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   PoseChange change;
   change.translation_m = (b.translation() - a.translation()).norm();

@@ -56,6 +56,12 @@ std::vector<SphereSighting> FindTargetSpheres(const Eigen::Matrix3Xd& points_C,
                                               const CalibrationTarget& target,
                                               const SphereSearchOptions& options = {});
 
+/// FindTargetSpheres on each camera's depth image (@p depth_mm, in rig order, row-major mm;
+/// an empty image finds nothing), through its intrinsics and nominal pose.
+std::vector<std::vector<SphereSighting>> FindTargetInViews(
+    const RigCalibration& rig, const std::vector<std::vector<std::uint16_t>>& depth_mm,
+    const CalibrationTarget& target, const SphereSearchOptions& options = {});
+
 /// Per camera, what it saw of the target in each position: sightings[position][camera].
 using TargetSightings = std::vector<std::vector<std::vector<SphereSighting>>>;
 

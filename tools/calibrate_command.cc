@@ -17,19 +17,13 @@
 #include "perception/rig_calibration.h"
 #include "perception/rig_calibrator.h"
 #include "perception/rig_capture.h"
-#include "perception/virtual_scene.h"
+#include "tools/capture_command.h"
 
 namespace vb::tools {
 namespace {
 
 using perception::CalibrationTarget;
 using perception::RigCalibration;
-
-void UseScene(const std::filesystem::path& scene) {
-  if (scene.empty()) return;
-  perception::LoadVirtualScene(scene);  // refuse a bad file here, with its message
-  setenv("VB_VIRTUAL_SCENE", std::filesystem::absolute(scene).c_str(), 1);
-}
 
 CalibrationTarget TargetOrDefault(const std::filesystem::path& path) {
   return path.empty() ? perception::DefaultCalibrationTarget() : perception::LoadCalibrationTarget(path);
@@ -281,11 +275,7 @@ int RunCheckRig(const CheckRigOptions& options) {
     perception::RigCapture capture(rig, perception::CaptureOptions{});
     depth = perception::CaptureStillDepth(&capture, options.frames, 3, 10.0);
   }
-  std::vector<std::vector<perception::SphereSighting>> sightings;
-  for (std::size_t c = 0; c < rig.cameras.size(); ++c) {
-    sightings.push_back(perception::FindTargetSpheres(
-        perception::DepthToPoints(depth[c], rig.cameras[c].intrinsics), rig.cameras[c].X_RigCam, target));
-  }
+  const auto sightings = perception::FindTargetInViews(rig, depth, target);
   perception::RigCheckOptions check_options;
   check_options.max_offset_mm = options.max_offset_mm;
   check_options.max_turn_deg = options.max_turn_deg;

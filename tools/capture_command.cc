@@ -26,12 +26,6 @@ using perception::CameraHealth;
 using perception::DepthView;
 using perception::RigCapture;
 
-void UseScene(const std::filesystem::path& scene) {
-  if (scene.empty()) return;
-  perception::LoadVirtualScene(scene);  // refuse a bad file here, with its message
-  setenv("VB_VIRTUAL_SCENE", std::filesystem::absolute(scene).c_str(), 1);
-}
-
 void PrintHealth(const RigCapture& capture) {
   std::printf("| camera | serial | health | frames | valid | restarts | reopens | note |\n");
   std::printf("|---|---|---|---|---|---|---|---|\n");
@@ -64,6 +58,12 @@ bool NextFrameSet(RigCapture* capture, std::vector<std::uint64_t>* since,
 }
 
 }  // namespace
+
+void UseScene(const std::filesystem::path& scene) {
+  if (scene.empty()) return;
+  perception::LoadVirtualScene(scene);  // refuse a bad file here, with its message
+  setenv("VB_VIRTUAL_SCENE", std::filesystem::absolute(scene).c_str(), 1);
+}
 
 int RunVirtualRig(const VirtualRigCommandOptions& options) {
   if (options.cameras < 1 || options.cameras > perception::RigCalibration::kMaxCameras)

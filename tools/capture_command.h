@@ -8,6 +8,11 @@
 
 namespace vb::tools {
 
+/// Points the virtual rig's OpenNI2 driver at @p scene ($VB_VIRTUAL_SCENE) after loading it,
+/// so a bad file is refused with its message; nothing when @p scene is empty.
+/// @throws InputError for a bad scene file.
+void UseScene(const std::filesystem::path& scene);
+
 struct VirtualRigCommandOptions {
   std::filesystem::path out_dir;
   int cameras = 4;

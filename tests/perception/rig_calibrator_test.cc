@@ -40,6 +40,17 @@ Eigen::Isometry3d Perturb(const Eigen::Isometry3d& X, double mm, double deg, std
   return out;
 }
 
+// What @p cam sees of @p mesh_Rig (and the floor): one frame at the sensor model, as points.
+Eigen::Matrix3Xd NoisyView(const CameraCalibration& cam, const io::TriangleMesh& mesh_Rig,
+                           std::uint64_t seed) {
+  DepthRenderer renderer(cam.intrinsics, cam.X_RigCam);
+  renderer.Render(mesh_Rig, -2.2);
+  std::vector<std::uint16_t> depth(renderer.depth_m().size());
+  DepthNoise(DepthNoiseOptions{}, seed).Apply(renderer.depth_m(), renderer.cos_incidence(),
+                                              cam.intrinsics.width, cam.intrinsics.height, &depth);
+  return DepthToPoints(depth, cam.intrinsics);
+}
+
 TEST(CalibrationTargetTest, TheDefaultTargetCanCalibrateAndBadOnesAreNamed) {
   const CalibrationTarget target = DefaultCalibrationTarget();
   EXPECT_TRUE(CheckCalibrationTarget(target).empty());
@@ -68,12 +79,7 @@ TEST(FindTargetSpheresTest, FindsAndNamesEverySphereInOneNoisyView) {
   const CalibrationTarget target = DefaultCalibrationTarget();
   const RigCalibration rig = MakeRingRig({});
   const CameraCalibration& cam = rig.cameras[1];
-  DepthRenderer renderer(cam.intrinsics, cam.X_RigCam);
-  renderer.Render(TargetMesh(target), -2.2);
-  std::vector<std::uint16_t> depth(renderer.depth_m().size());
-  DepthNoise(DepthNoiseOptions{}, 3).Apply(renderer.depth_m(), renderer.cos_incidence(),
-                                           cam.intrinsics.width, cam.intrinsics.height, &depth);
-  const auto found = FindTargetSpheres(DepthToPoints(depth, cam.intrinsics), cam.X_RigCam, target);
+  const auto found = FindTargetSpheres(NoisyView(cam, TargetMesh(target), 3), cam.X_RigCam, target);
   ASSERT_EQ(found.size(), 3u);
   for (const SphereSighting& s : found) {
     const Eigen::Vector3d truth =
@@ -96,12 +102,7 @@ TEST(FindTargetSpheresTest, DropsASphereThatDoesNotKeepTheTargetsDistances) {
   seen.rod_radius_m = 0;
   const RigCalibration rig = MakeRingRig({});
   const CameraCalibration& cam = rig.cameras[0];
-  DepthRenderer renderer(cam.intrinsics, cam.X_RigCam);
-  renderer.Render(TargetMesh(seen), -2.2);
-  std::vector<std::uint16_t> depth(renderer.depth_m().size());
-  DepthNoise(DepthNoiseOptions{}, 4).Apply(renderer.depth_m(), renderer.cos_incidence(),
-                                           cam.intrinsics.width, cam.intrinsics.height, &depth);
-  const auto found = FindTargetSpheres(DepthToPoints(depth, cam.intrinsics), cam.X_RigCam, target);
+  const auto found = FindTargetSpheres(NoisyView(cam, TargetMesh(seen), 4), cam.X_RigCam, target);
   ASSERT_EQ(found.size(), 2u);
   EXPECT_EQ(found[0].sphere, 0);
   EXPECT_EQ(found[1].sphere, 2);
@@ -134,13 +135,7 @@ class RigCalibrationTest : public ::testing::Test {
   // What each camera of @p capture sees of the target now: 10 averaged frames, after the
   // 6 that may still show the previous position.
   std::vector<std::vector<SphereSighting>> Sightings(RigCapture* capture, const RigCalibration& rig) {
-    const auto depth = CaptureStillDepth(capture, 10, 6, 10.0);
-    std::vector<std::vector<SphereSighting>> out;
-    for (std::size_t c = 0; c < rig.cameras.size(); ++c) {
-      out.push_back(FindTargetSpheres(DepthToPoints(depth[c], rig.cameras[c].intrinsics),
-                                      rig.cameras[c].X_RigCam, target_));
-    }
-    return out;
+    return FindTargetInViews(rig, CaptureStillDepth(capture, 10, 6, 10.0), target_);
   }
 
   test::TempDir dir_;
