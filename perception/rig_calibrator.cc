@@ -7,9 +7,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <numeric>
 
 #include "io/error.h"
+#include "perception/depth_noise.h"
 
 namespace vb::perception {
 namespace {
@@ -123,18 +125,60 @@ std::vector<std::uint16_t> AverageDepth(std::span<const std::vector<std::uint16_
   return out;
 }
 
+int MovedPixels(std::span<const std::uint16_t> a, std::span<const std::uint16_t> b, int width,
+                int height) {
+  constexpr int kReach = 2;
+  int moved = 0;
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u) {
+      const std::uint16_t z = b[static_cast<std::size_t>(v) * width + u];
+      if (z == 0) continue;
+      const int tolerance_mm = static_cast<int>(
+          std::max(10.0, 3.0 * std::sqrt(2.0) * 1000 * AxialSigma(DepthNoiseOptions{}, z * 1e-3)));
+      bool matched = false;
+      for (int dv = -kReach; dv <= kReach && !matched; ++dv) {
+        const int vv = v + dv;
+        if (vv < 0 || vv >= height) continue;
+        for (int du = -kReach; du <= kReach; ++du) {
+          const int uu = u + du;
+          if (uu < 0 || uu >= width) continue;
+          const std::uint16_t w = a[static_cast<std::size_t>(vv) * width + uu];
+          if (w != 0 && std::abs(static_cast<int>(w) - static_cast<int>(z)) <= tolerance_mm) {
+            matched = true;
+            break;
+          }
+        }
+      }
+      moved += !matched;
+    }
+  }
+  return moved;
+}
+
+bool SceneMoved(int moved_pixels, int valid_pixels) {
+  return moved_pixels >= 100 && moved_pixels * 1000LL > valid_pixels;
+}
+
 std::vector<std::vector<std::uint16_t>> CaptureStillDepth(RigCapture* capture, int frames,
-                                                          int skip, double timeout_s) {
+                                                          int skip, double timeout_s,
+                                                          std::vector<StillCapture>* report) {
   const auto n = static_cast<std::size_t>(capture->num_cameras());
   std::vector<std::vector<std::vector<std::uint16_t>>> kept(n);
   std::vector<std::uint64_t> seen(n, 0);
   std::vector<int> skipped(n, 0);
+  std::vector<StillCapture> still(n);
   for (std::size_t c = 0; c < n; ++c) seen[c] = capture->status(static_cast<int>(c)).frames;
   const std::int64_t deadline = MonotonicNs() + static_cast<std::int64_t>(timeout_s * 1e9);
+  // A camera stops being waited for once it has been missing or frozen for a while: a
+  // moment's stall (a scene being reloaded, a busy host) is not a failure.
+  constexpr std::int64_t kGiveUpNs = 2'000'000'000;
   auto done = [&] {
+    const std::int64_t now = MonotonicNs();
     for (std::size_t c = 0; c < n; ++c) {
-      const CameraHealth h = capture->status(static_cast<int>(c)).health;
-      const bool failing = h == CameraHealth::kMissing || h == CameraHealth::kFrozen;
+      const CameraStatus& status = capture->status(static_cast<int>(c));
+      const bool failing = (status.health == CameraHealth::kMissing ||
+                            status.health == CameraHealth::kFrozen) &&
+                           now - status.health_since_ns >= kGiveUpNs;
       if (!failing && static_cast<int>(kept[c].size()) < frames) return false;
     }
     return true;
@@ -147,13 +191,27 @@ std::vector<std::vector<std::uint16_t>> CaptureStillDepth(RigCapture* capture, i
       seen[c] = capture->status(camera).frames;
       if (skipped[c] < skip) {
         ++skipped[c];
-      } else if (static_cast<int>(kept[c].size()) < frames) {
-        kept[c].push_back(capture->frame(camera).depth_mm);
+        continue;
       }
+      if (static_cast<int>(kept[c].size()) >= frames) continue;
+      const DepthFrame& frame = capture->frame(camera);
+      if (!kept[c].empty() && kept[c][0].size() == frame.depth_mm.size() &&
+          frame.depth_mm.size() == static_cast<std::size_t>(frame.width) * frame.height) {
+        const int moved = MovedPixels(kept[c][0], frame.depth_mm, frame.width, frame.height);
+        if (SceneMoved(moved, frame.valid_pixels)) {
+          kept[c].clear();
+          ++still[c].restarts;
+        }
+      }
+      kept[c].push_back(frame.depth_mm);
     }
   }
   std::vector<std::vector<std::uint16_t>> out(n);
-  for (std::size_t c = 0; c < n; ++c) out[c] = AverageDepth(kept[c]);
+  for (std::size_t c = 0; c < n; ++c) {
+    still[c].frames = static_cast<int>(kept[c].size());
+    if (still[c].frames == frames) out[c] = AverageDepth(kept[c]);
+  }
+  if (report != nullptr) *report = std::move(still);
   return out;
 }
 

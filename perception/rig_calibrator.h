@@ -16,11 +16,38 @@ namespace vb::perception {
 /// sensor's noise. @pre every frame holds the same number of pixels.
 std::vector<std::uint16_t> AverageDepth(std::span<const std::vector<std::uint16_t>> frames);
 
+/// How many pixels of depth image @p b (width x height, row-major mm, 0 = none) show
+/// something @p a does not: a reading with no reading of @p a within 2 pixels of it and
+/// within 3 sigma of the difference of two readings at its depth (AxialSigma of the default
+/// PrimeSense-class model, times sqrt 2; at least 10 mm) of it. The neighbourhood absorbs the
+/// sensor's lateral jitter at silhouette edges and the tolerance its axial noise, so two
+/// frames of a still scene differ in almost no pixel, and a target moved by 2 cm across the
+/// view (or by more than the tolerance, 26 mm at 2 m, along it) in hundreds. @pre both images
+/// hold width * height values.
+int MovedPixels(std::span<const std::uint16_t> a, std::span<const std::uint16_t> b, int width,
+                int height);
+
+/// True when @p moved_pixels (MovedPixels) out of @p valid_pixels readings say the scene
+/// moved: more than 0.1 % of the readings and at least 100 pixels.
+bool SceneMoved(int moved_pixels, int valid_pixels);
+
+/// What CaptureStillDepth saw per camera.
+struct StillCapture {
+  int frames = 0;    ///< frames averaged (the requested number, or fewer by the timeout)
+  int restarts = 0;  ///< times the frames gathered so far were dropped because the scene moved
+};
+
 /// Reads @p frames frames from every camera of @p capture, after dropping the next @p skip
 /// of each (a scene that just changed), for at most @p timeout_s, and averages each camera's
-/// (AverageDepth). A camera that delivered nothing by then gets an empty image.
+/// (AverageDepth). The frames averaged are still: each is compared with the first kept
+/// (MovedPixels, SceneMoved), and when the scene moved (a target still swinging, a scene
+/// changed late) what was gathered is dropped and gathering starts again from that frame. A
+/// camera with fewer than @p frames still frames by the timeout, or missing or frozen for
+/// 2 s before it has them, gets an empty image.
+/// @param[out] report  when given, one entry per camera.
 std::vector<std::vector<std::uint16_t>> CaptureStillDepth(RigCapture* capture, int frames,
-                                                          int skip, double timeout_s);
+                                                          int skip, double timeout_s,
+                                                          std::vector<StillCapture>* report = nullptr);
 
 /// Back-projects a depth image (row-major mm) through @p intrinsics: 3 x N points in the
 /// camera frame (m), one per pixel with a reading in [min_m, max_m].

@@ -120,17 +120,25 @@ int RunCalibrateCapture(const CalibrateCaptureOptions& options) {
   std::filesystem::create_directories(options.out_dir);
   std::vector<std::vector<std::uint16_t>> depth;
   std::vector<perception::CameraStatus> status;
+  std::vector<perception::StillCapture> still;
   {
     perception::RigCapture capture(rig, perception::CaptureOptions{});
-    depth = perception::CaptureStillDepth(&capture, options.frames, 3, options.timeout_s);
+    depth = perception::CaptureStillDepth(&capture, options.frames, 3, options.timeout_s, &still);
     for (int c = 0; c < capture.num_cameras(); ++c) status.push_back(capture.status(c));
   }
   int written = 0;
   for (std::size_t c = 0; c < rig.cameras.size(); ++c) {
     const auto& cam = rig.cameras[c];
     if (depth[c].empty()) {
-      std::printf("%s (%s): nothing captured (%s: %s)\n", cam.name.c_str(), cam.serial.c_str(),
-                  perception::ToString(status[c].health), status[c].last_error);
+      if (still[c].restarts > 0) {
+        std::printf("%s (%s): the scene kept moving (%d of %d still frames, gathering restarted %d "
+                    "times): steady the target and capture again\n",
+                    cam.name.c_str(), cam.serial.c_str(), still[c].frames, options.frames,
+                    still[c].restarts);
+      } else {
+        std::printf("%s (%s): nothing captured (%s: %s)\n", cam.name.c_str(), cam.serial.c_str(),
+                    perception::ToString(status[c].health), status[c].last_error);
+      }
       continue;
     }
     io::PointCloud cloud;

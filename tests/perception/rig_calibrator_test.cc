@@ -6,6 +6,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <random>
@@ -40,15 +41,55 @@ Eigen::Isometry3d Perturb(const Eigen::Isometry3d& X, double mm, double deg, std
   return out;
 }
 
-// What @p cam sees of @p mesh_Rig (and the floor): one frame at the sensor model, as points.
-Eigen::Matrix3Xd NoisyView(const CameraCalibration& cam, const io::TriangleMesh& mesh_Rig,
-                           std::uint64_t seed) {
+// What @p cam sees of @p mesh_Rig (and the floor): one frame at the sensor model.
+std::vector<std::uint16_t> NoisyDepth(const CameraCalibration& cam, const io::TriangleMesh& mesh_Rig,
+                                      std::uint64_t seed) {
   DepthRenderer renderer(cam.intrinsics, cam.X_RigCam);
   renderer.Render(mesh_Rig, -2.2);
   std::vector<std::uint16_t> depth(renderer.depth_m().size());
   DepthNoise(DepthNoiseOptions{}, seed).Apply(renderer.depth_m(), renderer.cos_incidence(),
                                               cam.intrinsics.width, cam.intrinsics.height, &depth);
-  return DepthToPoints(depth, cam.intrinsics);
+  return depth;
+}
+
+// The same, as points.
+Eigen::Matrix3Xd NoisyView(const CameraCalibration& cam, const io::TriangleMesh& mesh_Rig,
+                           std::uint64_t seed) {
+  return DepthToPoints(NoisyDepth(cam, mesh_Rig, seed), cam.intrinsics);
+}
+
+// Two frames of a still target differ in a handful of pixels (the sensor's noise); the
+// target moved by 2 cm across the view, 4 cm along it or turned on its hook differs in
+// hundreds, whichever frame is first.
+TEST(MovedPixelsTest, NoiseIsStillAndAMovedTargetIsNot) {
+  const CalibrationTarget target = DefaultCalibrationTarget();
+  const RigCalibration rig = MakeRingRig({});
+  for (const CameraCalibration& cam : rig.cameras) {
+    const int w = cam.intrinsics.width, h = cam.intrinsics.height;
+    const auto a = NoisyDepth(cam, TargetMesh(target), 1);
+    const auto b = NoisyDepth(cam, TargetMesh(target), 2);
+    // 2 cm across the camera's view (level), then 4 cm along it.
+    const Eigen::Vector3d along = cam.X_RigCam.linear().col(2);
+    const Eigen::Vector3d across = along.cross(Eigen::Vector3d::UnitZ()).normalized();
+    Eigen::Isometry3d shifted = Eigen::Isometry3d::Identity(), nearer = shifted;
+    shifted.translation() = 0.02 * across;
+    nearer.translation() = -0.04 * along;
+    const auto moved = NoisyDepth(cam, TargetMesh(target, shifted), 2);
+    const auto closer = NoisyDepth(cam, TargetMesh(target, nearer), 2);
+    const auto turned = NoisyDepth(cam, TargetMesh(target, Yaw(120)), 2);
+    const int valid = static_cast<int>(std::count_if(b.begin(), b.end(), [](auto z) { return z != 0; }));
+    const int still = MovedPixels(a, b, w, h);
+    const int by_shift = MovedPixels(a, moved, w, h), back = MovedPixels(moved, a, w, h);
+    const int by_turn = MovedPixels(a, turned, w, h), by_approach = MovedPixels(a, closer, w, h);
+    std::printf("%s: %d readings; still %d, 2 cm across %d (%d the other way), 4 cm nearer %d, "
+                "turned %d\n",
+                cam.name.c_str(), valid, still, by_shift, back, by_approach, by_turn);
+    EXPECT_FALSE(SceneMoved(still, valid)) << cam.name;
+    EXPECT_TRUE(SceneMoved(by_shift, valid)) << cam.name;
+    EXPECT_TRUE(SceneMoved(back, valid)) << cam.name;
+    EXPECT_TRUE(SceneMoved(by_approach, valid)) << cam.name;
+    EXPECT_TRUE(SceneMoved(by_turn, valid)) << cam.name;
+  }
 }
 
 TEST(CalibrationTargetTest, TheDefaultTargetCanCalibrateAndBadOnesAreNamed) {
@@ -132,15 +173,46 @@ class RigCalibrationTest : public ::testing::Test {
     SaveVirtualScene(dir_ / "scene.yaml", scene);
   }
 
-  // What each camera of @p capture sees of the target now: 10 averaged frames, after the
-  // 6 that may still show the previous position.
+  // What each camera of @p capture sees of the target now: 10 still frames averaged. The
+  // driver picks a new scene up within 50 ms plus a render, longer on a loaded machine: the
+  // capture is repeated until every camera's image differs from the last position's (up to
+  // 5 times), and CaptureStillDepth restarts its average if the change lands inside it.
+  std::vector<std::vector<std::uint16_t>> CaptureAfterChange(RigCapture* capture,
+                                                             const RigCalibration& rig) {
+    std::vector<std::vector<std::uint16_t>> depth;
+    for (int attempt = 0; attempt < 5; ++attempt) {
+      std::vector<StillCapture> report;
+      depth = CaptureStillDepth(capture, 10, 3, 10.0, &report);
+      for (std::size_t c = 0; c < depth.size(); ++c) {
+        if (depth[c].empty())
+          std::printf("%s: no still image (%d frames, %d restarts, %s: %s)\n",
+                      rig.cameras[c].name.c_str(), report[c].frames, report[c].restarts,
+                      ToString(capture->status(static_cast<int>(c)).health),
+                      capture->status(static_cast<int>(c)).last_error);
+      }
+      bool changed = true;
+      for (std::size_t c = 0; c < depth.size() && !last_.empty(); ++c) {
+        const int w = rig.cameras[c].intrinsics.width, h = rig.cameras[c].intrinsics.height;
+        if (depth[c].empty() || last_[c].empty()) continue;
+        const int valid =
+            static_cast<int>(std::count_if(depth[c].begin(), depth[c].end(), [](auto z) { return z != 0; }));
+        changed = changed && SceneMoved(MovedPixels(last_[c], depth[c], w, h), valid);
+      }
+      if (changed) break;
+      std::printf("attempt %d: the scene has not changed yet in every camera\n", attempt);
+    }
+    last_ = depth;
+    return depth;
+  }
+
   std::vector<std::vector<SphereSighting>> Sightings(RigCapture* capture, const RigCalibration& rig) {
-    return FindTargetInViews(rig, CaptureStillDepth(capture, 10, 6, 10.0), target_);
+    return FindTargetInViews(rig, CaptureAfterChange(capture, rig), target_);
   }
 
   test::TempDir dir_;
   CalibrationTarget target_ = DefaultCalibrationTarget();
   RigCalibration truth_;
+  std::vector<std::vector<std::uint16_t>> last_;  // the last position's averaged images
 };
 
 TEST_F(RigCalibrationTest, RecoversPerturbedCameraPosesWithin2MmAndATenthOfADegree) {
@@ -172,10 +244,11 @@ TEST_F(RigCalibrationTest, RecoversPerturbedCameraPosesWithin2MmAndATenthOfADegr
     worst_deg = std::max(worst_deg, error.rotation_deg);
     EXPECT_LT(result.cameras[c].rms_mm, 0.4);  // measured 0.24 to 0.28 mm
   }
-  // The issue asks for 2 mm and 0.2 degree; measured 0.50 mm and 0.014 degree at worst, the
-  // same over repeated runs (the sensor model's bias, not its noise, sets it).
-  EXPECT_LT(worst_mm, 0.75);
-  EXPECT_LT(worst_deg, 0.021);
+  // The issue asks for 2 mm and 0.2 degree. Measured over 23 runs, release and
+  // AddressSanitizer builds, alone and two at once (which frames are averaged depends on the
+  // machine's timing): 0.37 to 0.76 mm and 0.008 to 0.023 degree at worst.
+  EXPECT_LT(worst_mm, 1.1);
+  EXPECT_LT(worst_deg, 0.034);
   // The target's later positions come out as hung: turned 120 and 240 degrees on the hook.
   EXPECT_NEAR(PoseDifference(Eigen::Isometry3d::Identity(), result.X_RigTarget[1]).rotation_deg, 120, 0.2);
   EXPECT_LT(result.X_RigTarget[2].translation().norm(), 0.002);
@@ -196,6 +269,7 @@ TEST_F(RigCalibrationTest, CheckFlagsACameraMovedBy5MmOr1Degree) {
     RigCalibration held = truth_;
     held.cameras[kMoved].X_RigCam = Perturb(truth_.cameras[kMoved].X_RigCam, k.mm, k.deg, &rng);
     std::vector<std::vector<SphereSighting>> seen;
+    last_.clear();  // the same scene in every case
     {
       RigCapture capture(held, CaptureOptions{});
       seen = Sightings(&capture, held);
@@ -240,7 +314,7 @@ TEST_F(RigCalibrationTest, SawCalibrationRecoversXSawRigFromABallTheRigSees) {
       scene.carcass_path = mesh;
       scene.floor_z_m = -2.2;
       SaveVirtualScene(dir_ / "scene.yaml", scene);
-      const auto depth = CaptureStillDepth(&capture, 10, 6, 10.0);
+      const auto depth = CaptureAfterChange(&capture, truth_);
       std::vector<Eigen::Matrix3Xd> points;
       for (std::size_t c = 0; c < truth_.cameras.size(); ++c)
         points.push_back(DepthToPoints(depth[c], truth_.cameras[c].intrinsics));
