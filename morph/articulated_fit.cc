@@ -123,7 +123,7 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
       backward[static_cast<std::size_t>(k)] = (target_samples.col(k) - posed.col(i)).norm();
     }
     const double forward_limit = KeepLimit(forward, options.keep_fraction);
-    const double backward_limit = KeepLimit(backward, options.keep_fraction);
+    const double backward_limit = KeepLimit(backward, options.target_keep_fraction);
     constraints.clear();
     for (Eigen::Index i = 0; i < ns; ++i) {
       if (forward[static_cast<std::size_t>(i)] > forward_limit) continue;

@@ -17,10 +17,16 @@ struct ArticulationOptions {
   /// Template vertices and target points paired per round (evenly spread).
   int template_samples = 600;
   int target_samples = 600;
-  /// Of each side's pairs, the nearest this fraction are kept (eq. 12's trimming, by
-  /// distance): a region the target does not show (a camera shadow, a lost limb) has
-  /// far partners only and does not pull.
+  /// Of the template's pairs, the nearest this fraction are kept (eq. 12's trimming, by
+  /// distance): a region the target does not show (a camera shadow, a lost limb) has far
+  /// partners only and does not pull. Also the trimming of TrimmedDisagreement.
   double keep_fraction = 0.8;
+  /// Of the target's pairs, the nearest this fraction are kept. All of them by default: the
+  /// target shows part of the template's surface, so every target point has a partner on
+  /// it, and the farthest are those of a limb the template has not yet reached, the pairs
+  /// that move it there (docs/decisions.md: trimming them at 0.8 as the template's left
+  /// the posture fit at the rigid floor).
+  double target_keep_fraction = 1.0;
   /// w_rot, w_reg and w_rig start at the deformation options' values times this and are
   /// multiplied by stiffness_decay each round, down to min_stiffness: stiff first, so limbs
   /// turn as wholes, then free enough to bend at the joints.

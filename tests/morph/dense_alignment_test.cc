@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <tuple>
 
@@ -12,6 +13,7 @@
 #include "io/surface_point.h"
 #include "morph/cut_transfer.h"
 #include "morph/dense_association.h"
+#include "morph/surface_distance.h"
 #include "perception/carcass_generator.h"
 #include "perception/carcass_shape.h"
 #include "tests/support/lamb_fixture.h"
@@ -249,10 +251,24 @@ TEST_F(DenseAlignmentTest, RefinesTheCoarseMorphAndTransfersTheCuts) {
     for (std::size_t r = 1; r < dense.rounds.size(); ++r)
       EXPECT_GT(dense.rounds[r].kept, 0.7 * dense.rounds[r].associated) << "round " << r;
 
+    // The dense stage brings the surfaces together: its vertices lie on the true surface
+    // far closer than the coarse stage's. (Per vertex, against each vertex's true position,
+    // it may gain little or lose a little: the coarse posture fit already places the lamb's
+    // vertices within 6 mm, and sliding along the surface costs the dense energy nothing.)
+    const SurfaceDistance on_truth(truth.mesh);
+    auto surface_gap = [&](const io::TriangleMesh& m) {
+      double sum = 0;
+      for (Eigen::Index i = 0; i < m.V.cols(); ++i) sum += on_truth(m.V.col(i));
+      return sum / static_cast<double>(m.V.cols());
+    };
+    const double coarse_gap = surface_gap(coarse.mesh), dense_gap = surface_gap(dense.mesh);
     const double coarse_error = (coarse.mesh.V - truth.mesh.V).colwise().norm().mean();
     const double dense_error = (dense.mesh.V - truth.mesh.V).colwise().norm().mean();
-    EXPECT_LT(dense_error, 0.6 * coarse_error) << "seed " << seed;
-    EXPECT_LT(dense_error / io::BoundingBoxDiagonal(truth.mesh.V), 0.012) << "seed " << seed;
+    std::printf("seed %llu: surface gap %.2f -> %.2f mm, vertex error %.2f -> %.2f mm\n",
+                static_cast<unsigned long long>(seed), 1000 * coarse_gap, 1000 * dense_gap,
+                1000 * coarse_error, 1000 * dense_error);
+    EXPECT_LT(dense_gap, 0.4 * coarse_gap) << "seed " << seed;
+    EXPECT_LT(dense_error / io::BoundingBoxDiagonal(truth.mesh.V), 0.006) << "seed " << seed;
 
     const std::vector<TransferredCut> cuts =
         TransferCuts(carcass_->annotations, model_->mesh, dense.mesh, dense.target,
