@@ -52,6 +52,11 @@ std::vector<std::uint16_t> NoisyDepth(const CameraCalibration& cam, const io::Tr
   return depth;
 }
 
+// The pixels of @p depth with a reading.
+int Readings(const std::vector<std::uint16_t>& depth) {
+  return static_cast<int>(std::count_if(depth.begin(), depth.end(), [](auto z) { return z != 0; }));
+}
+
 // The same, as points.
 Eigen::Matrix3Xd NoisyView(const CameraCalibration& cam, const io::TriangleMesh& mesh_Rig,
                            std::uint64_t seed) {
@@ -77,7 +82,7 @@ TEST(MovedPixelsTest, NoiseIsStillAndAMovedTargetIsNot) {
     const auto moved = NoisyDepth(cam, TargetMesh(target, shifted), 2);
     const auto closer = NoisyDepth(cam, TargetMesh(target, nearer), 2);
     const auto turned = NoisyDepth(cam, TargetMesh(target, Yaw(120)), 2);
-    const int valid = static_cast<int>(std::count_if(b.begin(), b.end(), [](auto z) { return z != 0; }));
+    const int valid = Readings(b);
     const int still = MovedPixels(a, b, w, h);
     const int by_shift = MovedPixels(a, moved, w, h), back = MovedPixels(moved, a, w, h);
     const int by_turn = MovedPixels(a, turned, w, h), by_approach = MovedPixels(a, closer, w, h);
@@ -161,16 +166,21 @@ class RigCalibrationTest : public ::testing::Test {
     setenv("VB_VIRTUAL_SCENE", (dir_ / "scene.yaml").c_str(), 1);
   }
 
-  // Hangs the target at @p X_RigTarget (a new file per position, so the driver reloads it).
-  void ShowTarget(const Eigen::Isometry3d& X_RigTarget, int position) {
-    const std::string mesh = "target" + std::to_string(position) + ".ply";
-    io::WriteMesh(dir_ / mesh, TargetMesh(target_, X_RigTarget));
+  // Hangs @p mesh_Rig on the hook of the virtual rig, written as @p file (a new file each
+  // time, so the driver reloads it), the sensor noise drawn from @p seed.
+  void Hang(const io::TriangleMesh& mesh_Rig, const std::string& file, std::uint64_t seed) {
+    io::WriteMesh(dir_ / file, mesh_Rig);
     VirtualScene scene;
     scene.rig_path = "truth.yaml";
-    scene.carcass_path = mesh;
+    scene.carcass_path = file;
     scene.floor_z_m = -2.2;
-    scene.seed = 5;
+    scene.seed = seed;
     SaveVirtualScene(dir_ / "scene.yaml", scene);
+  }
+
+  // Hangs the target at @p X_RigTarget.
+  void ShowTarget(const Eigen::Isometry3d& X_RigTarget, int position) {
+    Hang(TargetMesh(target_, X_RigTarget), "target" + std::to_string(position) + ".ply", 5);
   }
 
   // What each camera of @p capture sees of the target now: 10 still frames averaged. The
@@ -194,9 +204,7 @@ class RigCalibrationTest : public ::testing::Test {
       for (std::size_t c = 0; c < depth.size() && !last_.empty(); ++c) {
         const int w = rig.cameras[c].intrinsics.width, h = rig.cameras[c].intrinsics.height;
         if (depth[c].empty() || last_[c].empty()) continue;
-        const int valid =
-            static_cast<int>(std::count_if(depth[c].begin(), depth[c].end(), [](auto z) { return z != 0; }));
-        changed = changed && SceneMoved(MovedPixels(last_[c], depth[c], w, h), valid);
+        changed = changed && SceneMoved(MovedPixels(last_[c], depth[c], w, h), Readings(depth[c]));
       }
       if (changed) break;
       std::printf("attempt %d: the scene has not changed yet in every camera\n", attempt);
@@ -307,13 +315,7 @@ TEST_F(RigCalibrationTest, SawCalibrationRecoversXSawRigFromABallTheRigSees) {
     for (int i = 0; i < 5; ++i) {
       Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
       X.translation() = at[i];
-      const std::string mesh = "ball" + std::to_string(i) + ".ply";
-      io::WriteMesh(dir_ / mesh, TargetMesh(ball, X));
-      VirtualScene scene;
-      scene.rig_path = "truth.yaml";
-      scene.carcass_path = mesh;
-      scene.floor_z_m = -2.2;
-      SaveVirtualScene(dir_ / "scene.yaml", scene);
+      Hang(TargetMesh(ball, X), "ball" + std::to_string(i) + ".ply", VirtualScene{}.seed);
       const auto depth = CaptureAfterChange(&capture, truth_);
       std::vector<Eigen::Matrix3Xd> points;
       for (std::size_t c = 0; c < truth_.cameras.size(); ++c)
