@@ -6,7 +6,6 @@
 
 #include "io/annotations.h"
 #include "io/plane.h"
-#include "io/plane_cut.h"
 #include "io/triangle_mesh.h"
 
 namespace vb::morph {
@@ -69,7 +68,7 @@ struct CutTransferOptions {
   /// What a band fit's reading is good to at best, beyond its own standard error (fraction
   /// of the size): it models a cut's neighbourhood as one turned and stretched piece.
   double slide_model_error = 0.00125;
-  /// The band fit uses plane points (dense_association.h) of this many target points within
+  /// The band fit uses plane points (plane_points.h) of this many target points within
   /// slide_plane_radius, so sensor noise averages out before the fit.
   int slide_plane_neighbours = 20;
   double slide_plane_radius = 0.03;
@@ -145,33 +144,5 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
                                          const Eigen::Matrix3Xd& target_normals, double size,
                                          const CutTransferOptions& options = {},
                                          double noise = 0.0);
-
-/// Virtual cutting: the parts of @p mesh (the target, or the morphed template standing in
-/// for it) between the transferred planes, in the annotations' part order.
-std::vector<io::PartMeasure> CutParts(const io::TriangleMesh& mesh,
-                                      const std::vector<TransferredCut>& cuts);
-
-struct PartVolumeOptions {
-  /// Target points farther than this from the morphed surface (a fraction of the template's
-  /// size) are taken as not of it.
-  double max_offset = 0.03;
-  /// Fewer target points than this in a part leave its volume as the morph has it.
-  int min_points = 50;
-};
-
-/// Virtual cutting of the morphed template, with each part's volume then told by the target:
-/// the morph's part volume plus its outer area times the mean signed distance (outward
-/// positive) from the target points in the part to the morphed surface. Where the morph
-/// stayed fatter or thinner than the carcass (its regularisers resist a change of girth, and
-/// more so on noisy targets, whose data term is weighted down), the target points lie inside
-/// or outside it by about that much all over the part; their mean averages the sensor noise
-/// away. The area is the morph's.
-/// @param[in] morphed the morphed template, target frame (its vertex normals computed when
-/// it has none).
-/// @param[in] target 3 by N target points, same frame; @p size as TransferCuts'.
-std::vector<io::PartMeasure> CutTargetParts(const io::TriangleMesh& morphed,
-                                            const std::vector<TransferredCut>& cuts,
-                                            const Eigen::Matrix3Xd& target, double size,
-                                            const PartVolumeOptions& options = {});
 
 }  // namespace vb::morph

@@ -6,6 +6,9 @@
 #include <memory>
 
 #include "io/mesh_measures.h"
+#include "morph/cloud_noise.h"
+#include "morph/cloud_normals.h"
+#include "morph/plane_points.h"
 #include "morph/point_index.h"
 
 namespace vb::morph {

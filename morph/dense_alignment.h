@@ -6,6 +6,7 @@
 
 #include "io/triangle_mesh.h"
 #include "morph/coarse_alignment.h"
+#include "morph/association_filter.h"
 #include "morph/dense_association.h"
 #include "morph/embedded_deformation.h"
 #include "morph/template_model.h"

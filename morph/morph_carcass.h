@@ -10,6 +10,7 @@
 #include "morph/cut_transfer.h"
 #include "morph/dense_alignment.h"
 #include "morph/morph_check.h"
+#include "morph/part_volumes.h"
 #include "morph/template_model.h"
 
 namespace vb::morph {

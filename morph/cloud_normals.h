@@ -1,0 +1,28 @@
+#pragma once
+
+#include <Eigen/Core>
+
+#include "morph/point_index.h"
+
+// Normals of a point cloud.
+namespace vb::morph {
+
+/// Unit normals of a point cloud from principal axes (the direction of least spread),
+/// oriented to agree with the normal of the nearest @p reference point (a surface already
+/// close to the cloud, such as the posed template), so they point outward wherever the
+/// reference does.
+///
+/// With @p passes = 1 the axes are those of each point's @p k nearest neighbours. Every
+/// further pass widens the neighbourhood: it replaces each point's moments (count, sum and
+/// sum of outer products of the points it covers) by the mean of its k nearest neighbours'
+/// moments, so after p passes a point's axes are those of a bell-shaped weighting of about
+/// k x p points around it. Noisy clouds need that many: the normal's error falls with the
+/// points averaged, and a pass costs k additions a point where a k x p nearest-neighbour
+/// query costs several times more.
+/// @param[in] points 3 by N; @param[in] reference, reference_normals 3 by M, M >= 1.
+/// @pre k >= 3, passes >= 1, @p index over @p points.
+Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointIndex& index, int k,
+                                 int passes, const Eigen::Matrix3Xd& reference,
+                                 const Eigen::Matrix3Xd& reference_normals);
+
+}  // namespace vb::morph

@@ -1,0 +1,58 @@
+#include "morph/plane_points.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "io/error.h"
+
+namespace vb::morph {
+
+int NeighboursForNoise(int fewest, int most, double relative_noise) {
+  return static_cast<int>(
+      std::lround(std::clamp(fewest * relative_noise * relative_noise, static_cast<double>(fewest),
+                             static_cast<double>(std::max(fewest, most)))));
+}
+
+double CurvatureOffset(double curvature_sum, double sigma) {
+  return std::clamp(sigma * sigma * curvature_sum, -sigma, sigma);
+}
+
+Eigen::Matrix3Xd PlanePoints(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
+                             const PointIndex& index, int k, double radius,
+                             bool correct_curvature) {
+  VB_DEMAND(k >= 1 && radius > 0 && normals.cols() == points.cols() &&
+            index.size() == points.cols());
+  Eigen::Matrix3Xd centroids(3, points.cols());
+  // Each point's neighbours, kept for the correction only: k per point, -1 where fewer exist.
+  Eigen::MatrixXi neighbours;
+  if (correct_curvature) neighbours = Eigen::MatrixXi::Constant(k, points.cols(), -1);
+  std::vector<int> found;
+  std::vector<double> distances;
+  for (Eigen::Index i = 0; i < points.cols(); ++i) {
+    index.Nearest(points.col(i), k, &found, &distances);
+    // The nearest (the point itself) always counts; the rest only within the radius.
+    std::size_t kept = std::min<std::size_t>(1, found.size());
+    while (kept < found.size() && distances[kept] <= radius * radius) ++kept;
+    found.resize(kept);
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (int j : found) sum += points.col(j);
+    centroids.col(i) = sum / static_cast<double>(found.size());
+    if (correct_curvature) std::copy(found.begin(), found.end(), neighbours.col(i).data());
+  }
+  if (correct_curvature) {
+    Eigen::VectorXd offsets(points.cols());
+    for (Eigen::Index i = 0; i < points.cols(); ++i)
+      offsets[i] = normals.col(i).dot(points.col(i) - centroids.col(i));
+    for (Eigen::Index i = 0; i < points.cols(); ++i) {
+      double sum = 0.0;
+      int count = 0;
+      for (Eigen::Index n = 0; n < k && neighbours(n, i) >= 0; ++n, ++count)
+        sum += offsets[neighbours(n, i)];
+      centroids.col(i) += normals.col(i) * (sum / static_cast<double>(count));
+    }
+  }
+  return centroids;
+}
+
+}  // namespace vb::morph
