@@ -669,7 +669,7 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
 void Pipeline::Dump(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
                     const morph::CarcassResult& result, const JobReport& report) const {
   try {
-    io::PointCloud cloud;
+    geometry::PointCloud cloud;
     cloud.points = points;
     cloud.normals = normals;
     io::WriteCloud(config_.job.dump_dir / "last_fused.ply", cloud);

@@ -28,7 +28,7 @@ struct JobReport {
   Verdict verdict = Verdict::kRefused;  ///< only kAccepted means the saw will cut
   std::string reason;                   ///< why not, unless accepted
   std::vector<double> confidences;
-  std::vector<io::Plane> planes;  ///< rig frame
+  std::vector<geometry::Plane> planes;  ///< rig frame
   double fusion_s = 0, morph_s = 0, send_s = 0, answer_s = 0;
   double latency_s = 0;  ///< from the frame set to the saw's answer (or the refusal)
   int fused_points = 0;

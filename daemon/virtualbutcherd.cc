@@ -48,7 +48,7 @@ void PrintReport(const vb::daemon::JobReport& r) {
   Log(Priority::kInfo, "%s   memory: %s\n", r.carcass_id.c_str(),
                vb::daemon::DescribeMemoryBudget(vb::daemon::GetMemoryBudgetStats()).c_str());
   for (std::size_t c = 0; c < r.planes.size(); ++c) {
-    const vb::io::Plane& p = r.planes[c];
+    const vb::geometry::Plane& p = r.planes[c];
     Log(Priority::kInfo,
                  "%s   cut %zu: point (%+.4f %+.4f %+.4f) normal (%+.3f %+.3f "
                  "%+.3f) confidence %.2f\n",

@@ -9,8 +9,8 @@
 
 namespace vb::io {
 
-std::vector<Plane> Annotations::planes() const {
-  std::vector<Plane> planes;
+std::vector<geometry::Plane> Annotations::planes() const {
+  std::vector<geometry::Plane> planes;
   for (const CutAnnotation& cut : cuts) planes.push_back(cut.plane);
   return planes;
 }
@@ -57,7 +57,7 @@ Annotations LoadAnnotations(const std::filesystem::path& path) {
       const std::string pkey = key + ".line[" + std::to_string(i) + "]";
       const YAML::Node p = line[i];
       if (!p.IsSequence() || p.size() != 4) r.Fail(p, pkey, "expected [face, b0, b1, b2]");
-      SurfacePoint sp;
+      geometry::SurfacePoint sp;
       sp.face = r.Scalar<int>(p[0], pkey + ".face");
       if (sp.face < 0 || sp.face >= a.face_count) {
         r.Fail(p[0], pkey + ".face",
@@ -114,7 +114,7 @@ void SaveAnnotations(const std::filesystem::path& path, const Annotations& a) {
     vector3(cut.plane.normal);
     out << YAML::EndMap;
     out << YAML::Key << "line" << YAML::Value << YAML::BeginSeq;
-    for (const SurfacePoint& p : cut.line) {
+    for (const geometry::SurfacePoint& p : cut.line) {
       out << YAML::Flow << YAML::BeginSeq << p.face << p.barycentric[0] << p.barycentric[1]
           << p.barycentric[2] << YAML::EndSeq;
     }
@@ -127,7 +127,7 @@ void SaveAnnotations(const std::filesystem::path& path, const Annotations& a) {
   if (!file) throw std::runtime_error(path.string() + ": write failed");
 }
 
-void CheckAnnotationsFit(const Annotations& a, const TriangleMesh& mesh,
+void CheckAnnotationsFit(const Annotations& a, const geometry::TriangleMesh& mesh,
                          const std::string& source) {
   if (a.vertex_count != mesh.num_vertices() || a.face_count != mesh.num_faces()) {
     throw InputError(source + ": annotations are for a mesh of " + std::to_string(a.vertex_count) +

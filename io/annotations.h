@@ -4,9 +4,9 @@
 #include <string>
 #include <vector>
 
-#include "io/plane.h"
-#include "io/surface_point.h"
-#include "io/triangle_mesh.h"
+#include "geometry/plane.h"
+#include "geometry/surface_point.h"
+#include "geometry/triangle_mesh.h"
 
 namespace vb::io {
 
@@ -16,9 +16,9 @@ struct CutAnnotation {
   std::string name;         ///< e.g. "leg_loin"
   std::string description;  ///< anatomical landmark, e.g. "above the ilio-sacral junction"
   /// Cut plane in the template frame; its normal points towards the part before the cut.
-  Plane plane;
+  geometry::Plane plane;
   /// Closed cut line, ordered along the loop (the last point connects to the first).
-  std::vector<SurfacePoint> line;
+  std::vector<geometry::SurfacePoint> line;
 };
 
 /// The annotation file of a template, format "vbutcher-annotations" version 1 (YAML):
@@ -46,7 +46,7 @@ struct Annotations {
   std::vector<std::string> parts;
   std::vector<CutAnnotation> cuts;
 
-  std::vector<Plane> planes() const;
+  std::vector<geometry::Plane> planes() const;
 };
 
 /// Loads and validates an annotation file.
@@ -59,7 +59,7 @@ void SaveAnnotations(const std::filesystem::path& path, const Annotations& annot
 
 /// @throws InputError naming @p source when the annotations were made for a mesh with other
 ///   vertex or face counts, or name faces @p mesh does not have.
-void CheckAnnotationsFit(const Annotations& annotations, const TriangleMesh& mesh,
+void CheckAnnotationsFit(const Annotations& annotations, const geometry::TriangleMesh& mesh,
                          const std::string& source);
 
 }  // namespace vb::io

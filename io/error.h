@@ -1,5 +1,7 @@
 #pragma once
 
+#include <cstdio>
+#include <cstdlib>
 #include <stdexcept>
 #include <string>
 
@@ -13,7 +15,11 @@ class InputError : public std::runtime_error {
 };
 
 namespace internal {
-[[noreturn]] void DemandFailed(const char* condition, const char* file, int line);
+// Header-only, so that every library (geometry/ below io/ too) can check invariants.
+[[noreturn]] inline void DemandFailed(const char* condition, const char* file, int line) {
+  std::fprintf(stderr, "<2>virtualbutcher: invariant failed: %s at %s:%d\n", condition, file, line);
+  std::abort();
+}
 }  // namespace internal
 
 }  // namespace vb

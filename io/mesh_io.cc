@@ -59,9 +59,9 @@ void Report(const std::string& warning, std::vector<std::string>* warnings) {
 
 }  // namespace
 
-TriangleMesh ReadMesh(const std::filesystem::path& path, const ReadLimits& limits,
-                      std::vector<std::string>* warnings) {
-  TriangleMesh mesh;
+geometry::TriangleMesh ReadMesh(const std::filesystem::path& path, const ReadLimits& limits,
+                                std::vector<std::string>* warnings) {
+  geometry::TriangleMesh mesh;
   switch (FormatFromPath(path)) {
     case FileFormat::kPly:
       mesh = ReadPly(path, limits);
@@ -82,18 +82,18 @@ TriangleMesh ReadMesh(const std::filesystem::path& path, const ReadLimits& limit
   return mesh;
 }
 
-PointCloud ReadCloud(const std::filesystem::path& path, const ReadLimits& limits,
-                     std::vector<std::string>* warnings) {
-  PointCloud cloud;
+geometry::PointCloud ReadCloud(const std::filesystem::path& path, const ReadLimits& limits,
+                               std::vector<std::string>* warnings) {
+  geometry::PointCloud cloud;
   const FileFormat format = FormatFromPath(path);
   if (format == FileFormat::kPcd) {
     cloud = ReadPcd(path, limits);
   } else if (format == FileFormat::kXyz) {
     cloud = ReadXyz(path, limits);
   } else {
-    TriangleMesh mesh = format == FileFormat::kPly   ? ReadPly(path, limits)
-                        : format == FileFormat::kOff ? ReadOff(path, limits)
-                                                     : ReadObj(path, limits);
+    geometry::TriangleMesh mesh = format == FileFormat::kPly   ? ReadPly(path, limits)
+                                  : format == FileFormat::kOff ? ReadOff(path, limits)
+                                                               : ReadObj(path, limits);
     cloud.points = std::move(mesh.V);
     cloud.normals = std::move(mesh.N);
   }
@@ -102,7 +102,7 @@ PointCloud ReadCloud(const std::filesystem::path& path, const ReadLimits& limits
   return cloud;
 }
 
-void WriteMesh(const std::filesystem::path& path, const TriangleMesh& mesh,
+void WriteMesh(const std::filesystem::path& path, const geometry::TriangleMesh& mesh,
                const WriteOptions& options) {
   switch (FormatFromPath(path)) {
     case FileFormat::kPly:
@@ -120,12 +120,12 @@ void WriteMesh(const std::filesystem::path& path, const TriangleMesh& mesh,
   }
 }
 
-void WriteCloud(const std::filesystem::path& path, const PointCloud& cloud,
+void WriteCloud(const std::filesystem::path& path, const geometry::PointCloud& cloud,
                 const WriteOptions& options) {
   const FileFormat format = FormatFromPath(path);
   if (format == FileFormat::kPcd) return WritePcd(path, cloud);
   if (format == FileFormat::kXyz) return WriteXyz(path, cloud);
-  TriangleMesh mesh;
+  geometry::TriangleMesh mesh;
   mesh.V = cloud.points;
   mesh.N = cloud.normals;
   mesh.F.resize(3, 0);

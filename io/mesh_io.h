@@ -4,9 +4,9 @@
 #include <string>
 #include <vector>
 
+#include "geometry/triangle_mesh.h"
 #include "io/ply.h"
 #include "io/read_limits.h"
-#include "io/triangle_mesh.h"
 
 namespace vb::io {
 
@@ -28,16 +28,16 @@ std::string DropInvalidNormals(const std::string& source, Eigen::Matrix3Xd* norm
 /// DropInvalidNormals; a warning goes to @p warnings, or to stderr when it is null.
 /// @throws InputError naming the file (and line or element) on bad content, on a format that
 ///   holds no faces (PCD, XYZ), or on a file with no faces.
-TriangleMesh ReadMesh(const std::filesystem::path& path,
-                      const ReadLimits& limits = DefaultReadLimits(),
-                      std::vector<std::string>* warnings = nullptr);
+geometry::TriangleMesh ReadMesh(const std::filesystem::path& path,
+                                const ReadLimits& limits = DefaultReadLimits(),
+                                std::vector<std::string>* warnings = nullptr);
 
 /// Reads a point cloud from any supported format; a mesh's vertices become the points. Its
 /// normals pass DropInvalidNormals, as ReadMesh.
 /// @throws InputError as ReadMesh, or when the cloud is empty.
-PointCloud ReadCloud(const std::filesystem::path& path,
-                     const ReadLimits& limits = DefaultReadLimits(),
-                     std::vector<std::string>* warnings = nullptr);
+geometry::PointCloud ReadCloud(const std::filesystem::path& path,
+                               const ReadLimits& limits = DefaultReadLimits(),
+                               std::vector<std::string>* warnings = nullptr);
 
 struct WriteOptions {
   PlyEncoding ply_encoding = PlyEncoding::kBinaryLittleEndian;
@@ -45,11 +45,11 @@ struct WriteOptions {
 
 /// Writes a mesh as PLY, OFF or OBJ by extension.
 /// @throws InputError for a cloud-only extension; std::runtime_error when writing fails.
-void WriteMesh(const std::filesystem::path& path, const TriangleMesh& mesh,
+void WriteMesh(const std::filesystem::path& path, const geometry::TriangleMesh& mesh,
                const WriteOptions& options = {});
 
 /// Writes a cloud in any supported format (a mesh format gets vertices only).
-void WriteCloud(const std::filesystem::path& path, const PointCloud& cloud,
+void WriteCloud(const std::filesystem::path& path, const geometry::PointCloud& cloud,
                 const WriteOptions& options = {});
 
 }  // namespace vb::io

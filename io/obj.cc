@@ -25,7 +25,7 @@ int ResolveIndex(const internal::LineScanner& scan, std::int64_t index, std::siz
 
 }  // namespace
 
-TriangleMesh ReadObj(const std::filesystem::path& path, const ReadLimits& limits) {
+geometry::TriangleMesh ReadObj(const std::filesystem::path& path, const ReadLimits& limits) {
   const std::string text = internal::ReadFileBounded(path, limits.max_file_bytes);
   internal::LineScanner scan(text, path.string());
   std::vector<double> positions;
@@ -78,7 +78,7 @@ TriangleMesh ReadObj(const std::filesystem::path& path, const ReadLimits& limits
                  limits.max_faces, "--max-faces");
     }
   }
-  TriangleMesh mesh;
+  geometry::TriangleMesh mesh;
   const auto nv = static_cast<Eigen::Index>(positions.size() / 3);
   mesh.V = Eigen::Map<const Eigen::Matrix3Xd>(positions.data(), 3, nv);
   mesh.F = internal::FacesFromFlat(triangles);
@@ -107,7 +107,7 @@ TriangleMesh ReadObj(const std::filesystem::path& path, const ReadLimits& limits
   return mesh;
 }
 
-void WriteObj(const std::filesystem::path& path, const TriangleMesh& mesh) {
+void WriteObj(const std::filesystem::path& path, const geometry::TriangleMesh& mesh) {
   std::ofstream out(path);
   if (!out) throw std::runtime_error(path.string() + ": cannot open for writing");
   out << "# written by VirtualButcher\n";

@@ -2,8 +2,8 @@
 
 #include <filesystem>
 
+#include "geometry/triangle_mesh.h"
 #include "io/read_limits.h"
-#include "io/triangle_mesh.h"
 
 namespace vb::io {
 
@@ -12,10 +12,10 @@ namespace vb::io {
 /// other statements ignored. Normals are kept per vertex only when every face corner of a
 /// vertex names the same `vn`; otherwise the mesh carries no normals.
 /// @throws InputError "file:line: ..." on malformed content.
-TriangleMesh ReadObj(const std::filesystem::path& path,
-                     const ReadLimits& limits = DefaultReadLimits());
+geometry::TriangleMesh ReadObj(const std::filesystem::path& path,
+                               const ReadLimits& limits = DefaultReadLimits());
 
 /// Writes OBJ with `v`, `vn` (when present) and `f i//i` faces, 1-based.
-void WriteObj(const std::filesystem::path& path, const TriangleMesh& mesh);
+void WriteObj(const std::filesystem::path& path, const geometry::TriangleMesh& mesh);
 
 }  // namespace vb::io

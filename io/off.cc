@@ -10,7 +10,7 @@
 
 namespace vb::io {
 
-TriangleMesh ReadOff(const std::filesystem::path& path, const ReadLimits& limits) {
+geometry::TriangleMesh ReadOff(const std::filesystem::path& path, const ReadLimits& limits) {
   const std::string text = internal::ReadFileBounded(path, limits.max_file_bytes);
   internal::LineScanner scan(text, path.string());
   if (!scan.NextLine()) scan.Fail("empty file, expected OFF header");
@@ -35,7 +35,7 @@ TriangleMesh ReadOff(const std::filesystem::path& path, const ReadLimits& limits
     scan.Fail("counts " + std::to_string(nv) + " vertices and " + std::to_string(nf) +
               " faces do not fit in a file of " + std::to_string(text.size()) + " bytes");
   }
-  TriangleMesh mesh;
+  geometry::TriangleMesh mesh;
   mesh.V.resize(3, nv);
   if (with_normals) mesh.N.resize(3, nv);
   for (std::int64_t i = 0; i < nv; ++i) {
@@ -79,7 +79,7 @@ TriangleMesh ReadOff(const std::filesystem::path& path, const ReadLimits& limits
   return mesh;
 }
 
-void WriteOff(const std::filesystem::path& path, const TriangleMesh& mesh) {
+void WriteOff(const std::filesystem::path& path, const geometry::TriangleMesh& mesh) {
   std::ofstream out(path);
   if (!out) throw std::runtime_error(path.string() + ": cannot open for writing");
   out << (mesh.has_normals() ? "NOFF\n" : "OFF\n");

@@ -201,7 +201,7 @@ PcdHeader ReadHeader(const std::filesystem::path& path, std::uint64_t file_bytes
 
 // The ASCII body, read here rather than by PCL (see PcdHeader): one line per point, every
 // field's values in order.
-PointCloud ReadAsciiBody(const std::filesystem::path& path, const PcdHeader& h,
+geometry::PointCloud ReadAsciiBody(const std::filesystem::path& path, const PcdHeader& h,
                          const ReadLimits& limits) {
   const std::string text = internal::ReadFileBounded(path, limits.max_file_bytes);
   internal::LineScanner scan(std::string_view(text).substr(h.header_bytes), path.string());
@@ -219,7 +219,7 @@ PointCloud ReadAsciiBody(const std::filesystem::path& path, const PcdHeader& h,
   const int x = column("x"), y = column("y"), z = column("z");
   const int nx = column("normal_x"), ny = column("normal_y"), nz = column("normal_z");
   const bool with_normals = nx >= 0 && ny >= 0 && nz >= 0;
-  PointCloud cloud;
+  geometry::PointCloud cloud;
   const auto n = static_cast<Eigen::Index>(h.points);
   cloud.points.resize(3, n);
   if (with_normals) cloud.normals.resize(3, n);
@@ -255,7 +255,7 @@ PointCloud ReadAsciiBody(const std::filesystem::path& path, const PcdHeader& h,
 // whose header text repeats after the DATA line (the mesh_read fuzz target, a 600 s run).
 // "binary" stores each point's fields in turn; "binary_compressed" is LZF (pcl::lzfDecompress,
 // which checks its bounds) over the fields stored one after another, each for every point.
-PointCloud ReadBinaryBody(const std::filesystem::path& path, const PcdHeader& h,
+geometry::PointCloud ReadBinaryBody(const std::filesystem::path& path, const PcdHeader& h,
                           const ReadLimits& limits) {
   const std::string source = path.string();
   const std::string file = internal::ReadFileBounded(path, limits.max_file_bytes);
@@ -316,7 +316,7 @@ PointCloud ReadBinaryBody(const std::filesystem::path& path, const PcdHeader& h,
   const FloatField x = field("x"), y = field("y"), z = field("z");
   const FloatField nx = field("normal_x"), ny = field("normal_y"), nz = field("normal_z");
   const bool with_normals = nx && ny && nz;
-  PointCloud cloud;
+  geometry::PointCloud cloud;
   const auto n = static_cast<Eigen::Index>(h.points);
   cloud.points.resize(3, n);
   if (with_normals) cloud.normals.resize(3, n);
@@ -335,7 +335,7 @@ PointCloud ReadBinaryBody(const std::filesystem::path& path, const PcdHeader& h,
 
 }  // namespace
 
-PointCloud ReadPcd(const std::filesystem::path& path, const ReadLimits& limits) {
+geometry::PointCloud ReadPcd(const std::filesystem::path& path, const ReadLimits& limits) {
   const std::string source = path.string();
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
@@ -350,7 +350,7 @@ PointCloud ReadPcd(const std::filesystem::path& path, const ReadLimits& limits) 
   return ReadBinaryBody(path, header, limits);
 }
 
-void WritePcd(const std::filesystem::path& path, const PointCloud& cloud) {
+void WritePcd(const std::filesystem::path& path, const geometry::PointCloud& cloud) {
   int status = 0;
   if (cloud.has_normals()) {
     pcl::PointCloud<pcl::PointNormal> out;

@@ -2,8 +2,8 @@
 
 #include <filesystem>
 
+#include "geometry/triangle_mesh.h"
 #include "io/read_limits.h"
-#include "io/triangle_mesh.h"
 
 namespace vb::io {
 
@@ -14,10 +14,10 @@ namespace vb::io {
 /// normal_x, normal_y, normal_z are kept when all present. Points with non-finite
 /// coordinates (PCD's marker for invalid pixels of organised clouds) are dropped.
 /// @throws InputError naming the file on a malformed header or body.
-PointCloud ReadPcd(const std::filesystem::path& path,
-                   const ReadLimits& limits = DefaultReadLimits());
+geometry::PointCloud ReadPcd(const std::filesystem::path& path,
+                             const ReadLimits& limits = DefaultReadLimits());
 
 /// Writes a binary PCD (float32, as PCD stores points) with normals when present.
-void WritePcd(const std::filesystem::path& path, const PointCloud& cloud);
+void WritePcd(const std::filesystem::path& path, const geometry::PointCloud& cloud);
 
 }  // namespace vb::io

@@ -273,7 +273,7 @@ void CheckPlyHeader(const std::string& source, const ReadLimits& limits) {
 
 }  // namespace
 
-TriangleMesh ReadPly(const std::filesystem::path& path, const ReadLimits& limits) {
+geometry::TriangleMesh ReadPly(const std::filesystem::path& path, const ReadLimits& limits) {
   PlyState s;
   s.source = path.string();
   s.limits = limits;
@@ -336,7 +336,7 @@ TriangleMesh ReadPly(const std::filesystem::path& path, const ReadLimits& limits
                        std::to_string(e.count) + " " + e.name + " elements");
     }
   }
-  TriangleMesh mesh;
+  geometry::TriangleMesh mesh;
   mesh.V = std::move(s.V);
   if (s.normal_seen[0] && s.normal_seen[1] && s.normal_seen[2]) mesh.N = std::move(s.N);
   mesh.F = internal::FacesFromFlat(s.triangles);
@@ -359,7 +359,8 @@ void PutLittleEndian(std::ofstream& out, T value) {
 
 }  // namespace
 
-void WritePly(const std::filesystem::path& path, const TriangleMesh& mesh, PlyEncoding encoding) {
+void WritePly(const std::filesystem::path& path, const geometry::TriangleMesh& mesh,
+              PlyEncoding encoding) {
   std::ofstream out(path, std::ios::binary);
   if (!out) throw std::runtime_error(path.string() + ": cannot open for writing");
   const bool binary = encoding == PlyEncoding::kBinaryLittleEndian;

@@ -2,8 +2,8 @@
 
 #include <filesystem>
 
+#include "geometry/triangle_mesh.h"
 #include "io/read_limits.h"
-#include "io/triangle_mesh.h"
 
 namespace vb::io {
 
@@ -19,13 +19,13 @@ enum class PlyEncoding { kAscii, kBinaryLittleEndian };
 ///   non-finite coordinates or out-of-range indices.
 /// @note In ascii files, PCL's parser reads an unparseable integer token as 0; unparseable
 ///   coordinates become NaN and are rejected.
-TriangleMesh ReadPly(const std::filesystem::path& path,
-                     const ReadLimits& limits = DefaultReadLimits());
+geometry::TriangleMesh ReadPly(const std::filesystem::path& path,
+                               const ReadLimits& limits = DefaultReadLimits());
 
 /// Writes @p mesh as PLY with double-precision coordinates (exact round trip), normals when
 /// the mesh has them, and faces when it has any.
 /// @throws std::runtime_error naming the file when it cannot be written.
-void WritePly(const std::filesystem::path& path, const TriangleMesh& mesh,
+void WritePly(const std::filesystem::path& path, const geometry::TriangleMesh& mesh,
               PlyEncoding encoding = PlyEncoding::kBinaryLittleEndian);
 
 }  // namespace vb::io

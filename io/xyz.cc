@@ -9,7 +9,7 @@
 
 namespace vb::io {
 
-PointCloud ReadXyz(const std::filesystem::path& path, const ReadLimits& limits) {
+geometry::PointCloud ReadXyz(const std::filesystem::path& path, const ReadLimits& limits) {
   const std::string text = internal::ReadFileBounded(path, limits.max_file_bytes);
   internal::LineScanner scan(text, path.string());
   std::vector<double> values;
@@ -29,7 +29,7 @@ PointCloud ReadXyz(const std::filesystem::path& path, const ReadLimits& limits) 
       values.push_back(k < 3 ? scan.Double(k, "coordinate")
                              : scan.DoubleOrNonFinite(k, "normal component"));
   }
-  PointCloud cloud;
+  geometry::PointCloud cloud;
   if (columns == 0) return cloud;
   const auto count = static_cast<Eigen::Index>(values.size() / columns);
   const Eigen::Map<const Eigen::MatrixXd> table(values.data(), static_cast<Eigen::Index>(columns),
@@ -39,7 +39,7 @@ PointCloud ReadXyz(const std::filesystem::path& path, const ReadLimits& limits) 
   return cloud;
 }
 
-void WriteXyz(const std::filesystem::path& path, const PointCloud& cloud) {
+void WriteXyz(const std::filesystem::path& path, const geometry::PointCloud& cloud) {
   std::ofstream out(path);
   if (!out) throw std::runtime_error(path.string() + ": cannot open for writing");
   char buffer[160];

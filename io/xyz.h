@@ -2,18 +2,18 @@
 
 #include <filesystem>
 
+#include "geometry/triangle_mesh.h"
 #include "io/read_limits.h"
-#include "io/triangle_mesh.h"
 
 namespace vb::io {
 
 /// Reads a plain-text cloud: one point per line, "x y z" or "x y z nx ny nz"; every line
 /// must have the same number of columns. '#' starts a comment line.
 /// @throws InputError "file:line: ..." on malformed content.
-PointCloud ReadXyz(const std::filesystem::path& path,
-                   const ReadLimits& limits = DefaultReadLimits());
+geometry::PointCloud ReadXyz(const std::filesystem::path& path,
+                             const ReadLimits& limits = DefaultReadLimits());
 
 /// Writes one point per line (with normals when present), 17 significant digits.
-void WriteXyz(const std::filesystem::path& path, const PointCloud& cloud);
+void WriteXyz(const std::filesystem::path& path, const geometry::PointCloud& cloud);
 
 }  // namespace vb::io

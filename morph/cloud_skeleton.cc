@@ -10,8 +10,8 @@
 #include <map>
 #include <unordered_map>
 
+#include "geometry/mesh_measures.h"
 #include "io/error.h"
-#include "io/mesh_measures.h"
 #include "morph/point_index.h"
 
 namespace vb::morph {
@@ -61,7 +61,7 @@ Eigen::Matrix3Xd Downsample(const Eigen::Matrix3Xd& points, double cell,
 SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOptions& options) {
   if (input.cols() < 50)
     throw InputError("skeleton: " + std::to_string(input.cols()) + " points, fewer than 50");
-  const double size = io::BoundingBoxDiagonal(input);
+  const double size = geometry::BoundingBoxDiagonal(input);
   if (!(size > 0.0)) throw InputError("skeleton: the points have no extent");
 
   std::vector<std::vector<int>> members;

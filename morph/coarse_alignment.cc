@@ -10,7 +10,7 @@
 #include <numbers>
 
 #include "io/error.h"
-#include "io/mesh_measures.h"
+#include "geometry/mesh_measures.h"
 #include "morph/point_index.h"
 
 namespace vb::morph {
@@ -127,7 +127,7 @@ void Finish(const TemplateModel& model, const Similarity& to_target, const Eigen
   result->mesh.F = model.mesh.F;
   result->mesh.V.resize(3, posed.cols());
   for (Eigen::Index i = 0; i < posed.cols(); ++i) result->mesh.V.col(i) = to_target(posed.col(i));
-  result->mesh.N = io::VertexNormals(result->mesh);
+  result->mesh.N = geometry::VertexNormals(result->mesh);
   result->ok = true;
 }
 
@@ -155,7 +155,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
 
   // Target skeleton and features, computed in the target's own normalised frame.
   auto phase = std::chrono::steady_clock::now();
-  const double target_size = io::BoundingBoxDiagonal(target);
+  const double target_size = geometry::BoundingBoxDiagonal(target);
   SkeletonGraph skeleton;
   try {
     skeleton = CloudSkeleton(target, options.skeleton);

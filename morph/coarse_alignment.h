@@ -3,7 +3,7 @@
 #include <Eigen/Core>
 #include <string>
 
-#include "io/triangle_mesh.h"
+#include "geometry/triangle_mesh.h"
 #include "morph/articulated_fit.h"
 #include "morph/cloud_skeleton.h"
 #include "morph/embedded_deformation.h"
@@ -67,7 +67,7 @@ struct CoarseOptions {
 struct CoarseResult {
   bool ok = false;
   std::string error;
-  io::TriangleMesh mesh;          ///< posed template in the target's frame (template faces)
+  geometry::TriangleMesh mesh;    ///< posed template in the target's frame (template faces)
   Similarity template_to_target;  ///< from the feature association
   Association association;
   /// Whether the chosen placement came from a skeleton pairing (else from the principal

@@ -11,7 +11,7 @@
 namespace vb::morph {
 
 std::optional<BandSlide> FitBandSlide(
-    const io::CutAnnotation& cut, const LineExtent& extent, const io::TriangleMesh& rest,
+    const io::CutAnnotation& cut, const LineExtent& extent, const geometry::TriangleMesh& rest,
     const Eigen::Matrix3Xd& rest_normals, const Eigen::Matrix3d& turn, double scale,
     const Eigen::Vector3d& target_centre, const Eigen::Matrix3Xd& plane_points, double band,
     double margin, double stretch_sigma, double slide_sigma, double tilt_sigma, int shared,

@@ -3,8 +3,8 @@
 #include <Eigen/Core>
 #include <optional>
 
+#include "geometry/triangle_mesh.h"
 #include "io/annotations.h"
-#include "io/triangle_mesh.h"
 #include "morph/cut_line.h"
 
 // Where along its normal a cut sits, read from the template's band either side of it
@@ -37,7 +37,7 @@ struct BandSlide {
 /// in template units; empty when too few points take part, the fit leaves its bounds or the
 /// band fixes no shift.
 std::optional<BandSlide> FitBandSlide(
-    const io::CutAnnotation& cut, const LineExtent& extent, const io::TriangleMesh& rest,
+    const io::CutAnnotation& cut, const LineExtent& extent, const geometry::TriangleMesh& rest,
     const Eigen::Matrix3Xd& rest_normals, const Eigen::Matrix3d& turn, double scale,
     const Eigen::Vector3d& target_centre, const Eigen::Matrix3Xd& plane_points, double band,
     double margin, double stretch_sigma, double slide_sigma, double tilt_sigma, int shared,

@@ -4,26 +4,26 @@
 #include <algorithm>
 #include <cmath>
 
-#include "io/surface_point.h"
+#include "geometry/surface_point.h"
 
 namespace vb::morph {
 
-io::Plane FitPlane(const std::vector<Eigen::Vector3d>& points) {
+geometry::Plane FitPlane(const std::vector<Eigen::Vector3d>& points) {
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const Eigen::Vector3d& p : points) mean += p;
   mean /= static_cast<double>(points.size());
   Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
   for (const Eigen::Vector3d& p : points) scatter += (p - mean) * (p - mean).transpose();
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);
-  return io::Plane{.point = mean, .normal = solver.eigenvectors().col(0).normalized()};
+  return geometry::Plane{.point = mean, .normal = solver.eigenvectors().col(0).normalized()};
 }
 
-LineExtent ExtentOf(const io::CutAnnotation& cut, const io::TriangleMesh& rest) {
+LineExtent ExtentOf(const io::CutAnnotation& cut, const geometry::TriangleMesh& rest) {
   LineExtent e;
-  for (const io::SurfacePoint& p : cut.line) e.centre += io::Evaluate(rest, p);
+  for (const geometry::SurfacePoint& p : cut.line) e.centre += geometry::Evaluate(rest, p);
   e.centre /= static_cast<double>(cut.line.size());
-  for (const io::SurfacePoint& p : cut.line)
-    e.radius = std::max(e.radius, (io::Evaluate(rest, p) - e.centre).norm());
+  for (const geometry::SurfacePoint& p : cut.line)
+    e.radius = std::max(e.radius, (geometry::Evaluate(rest, p) - e.centre).norm());
   return e;
 }
 
@@ -34,8 +34,8 @@ bool NearTheCut(const io::CutAnnotation& cut, const LineExtent& extent,
 }
 
 Eigen::Vector3d TowardsPartBefore(const io::CutAnnotation& cut, const LineExtent& extent,
-                                  const io::TriangleMesh& rest, const io::TriangleMesh& morphed,
-                                  double band) {
+                                  const geometry::TriangleMesh& rest,
+                                  const geometry::TriangleMesh& morphed, double band) {
   Eigen::Vector3d before = Eigen::Vector3d::Zero(), after = Eigen::Vector3d::Zero();
   int n_before = 0, n_after = 0;
   for (int v = 0; v < rest.num_vertices(); ++v) {
@@ -52,15 +52,15 @@ Eigen::Vector3d TowardsPartBefore(const io::CutAnnotation& cut, const LineExtent
   return before / n_before - after / n_after;
 }
 
-LineOnTarget CarryLine(const io::CutAnnotation& cut, const io::TriangleMesh& morphed,
+LineOnTarget CarryLine(const io::CutAnnotation& cut, const geometry::TriangleMesh& morphed,
                        const Eigen::Matrix3Xd& target, const Eigen::Matrix3Xd& target_normals,
                        const PointIndex& index, int neighbours, double radius) {
   LineOnTarget out;
   std::vector<int> found;
   std::vector<double> distances;
   int seen = 0;
-  for (const io::SurfacePoint& sp : cut.line) {
-    const Eigen::Vector3d p = io::Evaluate(morphed, sp);
+  for (const geometry::SurfacePoint& sp : cut.line) {
+    const Eigen::Vector3d p = geometry::Evaluate(morphed, sp);
     index.Nearest(p, neighbours, &found, &distances);
     Eigen::Vector3d mean = Eigen::Vector3d::Zero(), normal = Eigen::Vector3d::Zero();
     int n = 0;

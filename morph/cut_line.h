@@ -3,9 +3,9 @@
 #include <Eigen/Core>
 #include <vector>
 
+#include "geometry/plane.h"
+#include "geometry/triangle_mesh.h"
 #include "io/annotations.h"
-#include "io/plane.h"
-#include "io/triangle_mesh.h"
 #include "morph/point_index.h"
 
 // The cut line carried by the morph: where it lies on the template, the line on the target,
@@ -13,7 +13,7 @@
 namespace vb::morph {
 
 /// Least-squares plane of @p points: centroid and direction of least spread.
-io::Plane FitPlane(const std::vector<Eigen::Vector3d>& points);
+geometry::Plane FitPlane(const std::vector<Eigen::Vector3d>& points);
 
 /// Where a cut line lies on the template: its centroid and the largest distance from it.
 struct LineExtent {
@@ -22,7 +22,7 @@ struct LineExtent {
 };
 
 /// The extent of @p cut's line on @p rest.
-LineExtent ExtentOf(const io::CutAnnotation& cut, const io::TriangleMesh& rest);
+LineExtent ExtentOf(const io::CutAnnotation& cut, const geometry::TriangleMesh& rest);
 
 /// Template vertices within @p band of the cut's plane and close to its line, so that other
 /// limbs crossing the plane do not count.
@@ -32,8 +32,8 @@ bool NearTheCut(const io::CutAnnotation& cut, const LineExtent& extent,
 /// Which way the part before the cut lies on the morphed mesh: from the template vertices in
 /// a band on the far side of the cut to those in the band on its near side.
 Eigen::Vector3d TowardsPartBefore(const io::CutAnnotation& cut, const LineExtent& extent,
-                                  const io::TriangleMesh& rest, const io::TriangleMesh& morphed,
-                                  double band);
+                                  const geometry::TriangleMesh& rest,
+                                  const geometry::TriangleMesh& morphed, double band);
 
 /// A template cut line on the target.
 struct LineOnTarget {
@@ -47,7 +47,7 @@ struct LineOnTarget {
 /// within @p radius (target units); where none lie that close, the morphed point stands in
 /// for the unseen target.
 /// @param[in] target, target_normals 3 by N (unit normals); @p index over @p target.
-LineOnTarget CarryLine(const io::CutAnnotation& cut, const io::TriangleMesh& morphed,
+LineOnTarget CarryLine(const io::CutAnnotation& cut, const geometry::TriangleMesh& morphed,
                        const Eigen::Matrix3Xd& target, const Eigen::Matrix3Xd& target_normals,
                        const PointIndex& index, int neighbours, double radius);
 

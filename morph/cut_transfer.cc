@@ -5,8 +5,8 @@
 #include <optional>
 #include <utility>
 
+#include "geometry/mesh_measures.h"
 #include "io/error.h"
-#include "io/mesh_measures.h"
 #include "morph/cut_band_fit.h"
 #include "morph/cut_line.h"
 #include "morph/cut_placement.h"
@@ -17,8 +17,8 @@
 namespace vb::morph {
 
 std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
-                                         const io::TriangleMesh& rest,
-                                         const io::TriangleMesh& morphed,
+                                         const geometry::TriangleMesh& rest,
+                                         const geometry::TriangleMesh& morphed,
                                          const Eigen::Matrix3Xd& target,
                                          const Eigen::Matrix3Xd& target_normals, double size,
                                          const CutTransferOptions& options, double noise) {
@@ -26,7 +26,7 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
             target_normals.cols() == target.cols() && size > 0 && noise >= 0 &&
             options.slide_band_noise > 0 && options.slide_sigma > 0 &&
             options.slide_correlation_length >= 0 && options.slide_model_error >= 0);
-  const double template_size = io::BoundingBoxDiagonal(rest.V);
+  const double template_size = geometry::BoundingBoxDiagonal(rest.V);
   const double relative_noise = noise / options.slide_band_noise;
   const double slide_band = options.slide_band * std::sqrt(std::max(1.0, relative_noise));
   // Noisier targets average more points per plane point (see max_slide_plane_neighbours).
@@ -36,16 +36,17 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
   const double radius = options.support_radius * size;
   Eigen::Matrix3Xd computed_rest_normals, computed_morphed_normals;  // for meshes without
   const Eigen::Matrix3Xd& rest_normals =
-      rest.has_normals() ? rest.N : (computed_rest_normals = io::VertexNormals(rest));
+      rest.has_normals() ? rest.N : (computed_rest_normals = geometry::VertexNormals(rest));
   const Eigen::Matrix3Xd& morphed_normals =
-      morphed.has_normals() ? morphed.N : (computed_morphed_normals = io::VertexNormals(morphed));
+      morphed.has_normals() ? morphed.N
+                            : (computed_morphed_normals = geometry::VertexNormals(morphed));
   Eigen::Matrix3Xd plane_points;  // of the target, made when the first band fit needs them
   // How far out along the normal a noisy target's plane point paired with each template
   // vertex is moved, template units (see unbias_plane_points); empty on a clean target.
   Eigen::VectorXd outward;
   if (options.unbias_plane_points && noise > 0) {
     const double sigma = noise * template_size;
-    outward = io::CurvatureSums(rest, rest_normals).unaryExpr([sigma](double curvature) {
+    outward = geometry::CurvatureSums(rest, rest_normals).unaryExpr([sigma](double curvature) {
       return CurvatureOffset(curvature, sigma);
     });
   }

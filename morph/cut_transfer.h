@@ -4,9 +4,9 @@
 #include <string>
 #include <vector>
 
+#include "geometry/plane.h"
+#include "geometry/triangle_mesh.h"
 #include "io/annotations.h"
-#include "io/plane.h"
-#include "io/triangle_mesh.h"
 
 namespace vb::morph {
 
@@ -99,7 +99,7 @@ struct TransferredCut {
   /// the normals there do not change with the slip. Where the band holds too few vertices
   /// or their normals fix no rotation (a flat patch), the normal is the line's
   /// least-squares one.
-  io::Plane plane;
+  geometry::Plane plane;
   /// True when plane.normal came from the band's normals, false from the line's plane fit.
   bool oriented_by_normals = false;
   /// How far the plane was moved along its normal from the line's centroid (target units,
@@ -138,8 +138,8 @@ struct TransferredCut {
 /// @param[in] noise the target's sensor noise (standard deviation along the surface), a
 /// fraction of the template's size, as DenseResult::noise; 0 when clean or unknown.
 std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
-                                         const io::TriangleMesh& rest,
-                                         const io::TriangleMesh& morphed,
+                                         const geometry::TriangleMesh& rest,
+                                         const geometry::TriangleMesh& morphed,
                                          const Eigen::Matrix3Xd& target,
                                          const Eigen::Matrix3Xd& target_normals, double size,
                                          const CutTransferOptions& options = {},

@@ -17,7 +17,7 @@ constexpr double kMinNormalSpread = 0.1;
 }  // namespace
 
 std::optional<Eigen::Matrix3d> SurfaceTurn(const io::CutAnnotation& cut, const LineExtent& extent,
-                                           const io::TriangleMesh& rest,
+                                           const geometry::TriangleMesh& rest,
                                            const Eigen::Matrix3Xd& rest_normals,
                                            const Eigen::Matrix3Xd& morphed_normals, double band,
                                            double max_lean, int min_vertices) {
@@ -40,7 +40,8 @@ std::optional<Eigen::Matrix3d> SurfaceTurn(const io::CutAnnotation& cut, const L
 }
 
 double BandScale(const io::CutAnnotation& cut, const LineExtent& extent,
-                 const io::TriangleMesh& rest, const io::TriangleMesh& morphed, double band) {
+                 const geometry::TriangleMesh& rest, const geometry::TriangleMesh& morphed,
+                 double band) {
   std::vector<int> in_band;
   for (int v = 0; v < rest.num_vertices(); ++v)
     if (NearTheCut(cut, extent, rest.V.col(v), band)) in_band.push_back(v);

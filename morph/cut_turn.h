@@ -3,8 +3,8 @@
 #include <Eigen/Core>
 #include <optional>
 
+#include "geometry/triangle_mesh.h"
 #include "io/annotations.h"
-#include "io/triangle_mesh.h"
 #include "morph/cut_line.h"
 
 // How the morph turned and scaled the surface beside a cut. Template units.
@@ -16,7 +16,7 @@ namespace vb::morph {
 /// cosine between them). Empty when fewer than min_vertices count, or their normals do not
 /// fix a rotation (their correlation's second singular value under a tenth of its first).
 std::optional<Eigen::Matrix3d> SurfaceTurn(const io::CutAnnotation& cut, const LineExtent& extent,
-                                           const io::TriangleMesh& rest,
+                                           const geometry::TriangleMesh& rest,
                                            const Eigen::Matrix3Xd& rest_normals,
                                            const Eigen::Matrix3Xd& morphed_normals, double band,
                                            double max_lean, int min_vertices);
@@ -24,6 +24,7 @@ std::optional<Eigen::Matrix3d> SurfaceTurn(const io::CutAnnotation& cut, const L
 /// How much the morph scaled the band near @p cut: the ratio of the morphed band vertices'
 /// spread about their centroid to the template's.
 double BandScale(const io::CutAnnotation& cut, const LineExtent& extent,
-                 const io::TriangleMesh& rest, const io::TriangleMesh& morphed, double band);
+                 const geometry::TriangleMesh& rest, const geometry::TriangleMesh& morphed,
+                 double band);
 
 }  // namespace vb::morph

@@ -10,12 +10,12 @@
 #include <unordered_map>
 #include <unordered_set>
 
+#include "geometry/mesh_measures.h"
 #include "io/error.h"
-#include "io/mesh_measures.h"
 
 namespace vb::morph {
 
-MeshGraph::MeshGraph(const io::TriangleMesh& mesh) {
+MeshGraph::MeshGraph(const geometry::TriangleMesh& mesh) {
   std::vector<std::pair<int, int>> directed;
   directed.reserve(static_cast<std::size_t>(6 * mesh.num_faces()));
   for (int f = 0; f < mesh.num_faces(); ++f) {
@@ -66,9 +66,9 @@ std::vector<int> MeshGraph::NearestTargets(int source, int count,
   return found;
 }
 
-DeformationGraph BuildDeformationGraph(const io::TriangleMesh& mesh,
+DeformationGraph BuildDeformationGraph(const geometry::TriangleMesh& mesh,
                                        const DeformationGraphOptions& options) {
-  const double size = io::BoundingBoxDiagonal(mesh.V);
+  const double size = geometry::BoundingBoxDiagonal(mesh.V);
   const double spacing = options.node_spacing * size;
   DeformationGraph g;
   // Greedy Poisson-disk sampling on a hash grid of cell = spacing.
@@ -185,7 +185,7 @@ void FillWeights(const Eigen::Vector3d& p, std::vector<int> candidates,
 
 }  // namespace
 
-NodeWeights VertexWeights(const io::TriangleMesh& mesh, const DeformationGraph& graph,
+NodeWeights VertexWeights(const geometry::TriangleMesh& mesh, const DeformationGraph& graph,
                           const DeformationGraphOptions& options) {
   std::vector<int> node_of_vertex(static_cast<std::size_t>(mesh.num_vertices()), -1);
   for (std::size_t j = 0; j < graph.node_vertex.size(); ++j)

@@ -4,7 +4,7 @@
 #include <array>
 #include <vector>
 
-#include "io/triangle_mesh.h"
+#include "geometry/triangle_mesh.h"
 
 namespace vb::morph {
 
@@ -38,7 +38,7 @@ struct NodeWeights {
 /// Vertex adjacency of a mesh in compressed rows, with edge lengths, for geodesic searches.
 class MeshGraph {
  public:
-  explicit MeshGraph(const io::TriangleMesh& mesh);
+  explicit MeshGraph(const geometry::TriangleMesh& mesh);
   /// Algorithm 1: explores the mesh from @p source in order of path length until
   /// @p count vertices for which @p is_target is true are found (the source included);
   /// returns them in the order found.
@@ -52,12 +52,12 @@ class MeshGraph {
 
 /// Samples nodes (greedy Poisson-disk over vertices in index order) and links them.
 /// @pre mesh is closed and connected.
-DeformationGraph BuildDeformationGraph(const io::TriangleMesh& mesh,
+DeformationGraph BuildDeformationGraph(const geometry::TriangleMesh& mesh,
                                        const DeformationGraphOptions& options);
 
 /// Eq. (10) weights of every mesh vertex: its vertex_neighbours nearest nodes along the
 /// mesh, w_j = 1 - |v - g_j| / d_max with d_max the distance to the next node, normalised.
-NodeWeights VertexWeights(const io::TriangleMesh& mesh, const DeformationGraph& graph,
+NodeWeights VertexWeights(const geometry::TriangleMesh& mesh, const DeformationGraph& graph,
                           const DeformationGraphOptions& options);
 
 /// Eq. (10) weights of points that are not vertices (skeleton feature nodes): candidate

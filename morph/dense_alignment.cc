@@ -5,7 +5,7 @@
 #include <cmath>
 #include <memory>
 
-#include "io/mesh_measures.h"
+#include "geometry/mesh_measures.h"
 #include "morph/cloud_noise.h"
 #include "morph/cloud_normals.h"
 #include "morph/plane_points.h"
@@ -46,10 +46,10 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   for (Eigen::Index i = 0; i < target.cols(); ++i) points.col(i) = to_template(target.col(i));
   auto index = std::make_unique<PointIndex>(points);
 
-  io::TriangleMesh posed;
+  geometry::TriangleMesh posed;
   posed.V = DeformPoints(model.graph, model.vertex_weights, model.V, coarse.state);
   posed.F = model.mesh.F;
-  posed.N = io::VertexNormals(posed);
+  posed.N = geometry::VertexNormals(posed);
 
   std::vector<int> samples;
   const int step = std::max(1, static_cast<int>(model.V.cols()) / std::max(1, options.num_samples));
@@ -128,7 +128,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     return FilterAssociations(a1, a2, options.filter);
   };
   for (int round = 0; round < options.rounds; ++round) {
-    if (options.unbias_plane_points) curvature = io::CurvatureSums(posed, posed.N);
+    if (options.unbias_plane_points) curvature = geometry::CurvatureSums(posed, posed.N);
     DenseRound info;
     phase = std::chrono::steady_clock::now();
     const DenseAssociation pairs =
@@ -188,14 +188,14 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
       return result;
     }
     posed.V = DeformPoints(model.graph, model.vertex_weights, model.V, result.state);
-    posed.N = io::VertexNormals(posed);
+    posed.N = geometry::VertexNormals(posed);
   }
 
   result.mesh.F = model.mesh.F;
   result.mesh.V.resize(3, posed.V.cols());
   for (Eigen::Index i = 0; i < posed.V.cols(); ++i)
     result.mesh.V.col(i) = to_target(posed.V.col(i));
-  result.mesh.N = io::VertexNormals(result.mesh);
+  result.mesh.N = geometry::VertexNormals(result.mesh);
   result.target_normals = to_target.R * normals;
   result.target = target(Eigen::all, Eigen::seq(0, Eigen::last, result.stride));
   result.ok = true;

@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-#include "io/triangle_mesh.h"
+#include "geometry/triangle_mesh.h"
 #include "morph/coarse_alignment.h"
 #include "morph/association_filter.h"
 #include "morph/dense_association.h"
@@ -107,7 +107,7 @@ struct DenseRound {
 struct DenseResult {
   bool ok = false;
   std::string error;
-  io::TriangleMesh mesh;            ///< morphed template in the target's frame (template faces)
+  geometry::TriangleMesh mesh;            ///< morphed template in the target's frame (template faces)
   DeformationState state;           ///< normalised template frame
   /// The target points the stage used, target frame: every stride-th (see thin_to_noise),
   /// so that what comes after (check, cut transfer) reads the cloud the way the stage did.

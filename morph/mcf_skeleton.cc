@@ -9,7 +9,7 @@
 
 namespace vb::morph {
 
-SkeletonGraph MeanCurvatureFlowSkeleton(const io::TriangleMesh& mesh) {
+SkeletonGraph MeanCurvatureFlowSkeleton(const geometry::TriangleMesh& mesh) {
   using Kernel = CGAL::Simple_cartesian<double>;
   using Point = Kernel::Point_3;
   using SurfaceMesh = CGAL::Surface_mesh<Point>;

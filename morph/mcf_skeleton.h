@@ -1,6 +1,6 @@
 #pragma once
 
-#include "io/triangle_mesh.h"
+#include "geometry/triangle_mesh.h"
 #include "morph/skeleton_graph.h"
 
 namespace vb::morph {
@@ -10,6 +10,6 @@ namespace vb::morph {
 /// Each skeleton node's support lists the mesh vertices that collapsed onto it. This is the
 /// only translation unit of vb::morph that includes CGAL (about 35 s to compile).
 /// @throws InputError if the mesh is not a closed 2-manifold CGAL can build.
-SkeletonGraph MeanCurvatureFlowSkeleton(const io::TriangleMesh& mesh);
+SkeletonGraph MeanCurvatureFlowSkeleton(const geometry::TriangleMesh& mesh);
 
 }  // namespace vb::morph

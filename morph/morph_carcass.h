@@ -3,9 +3,9 @@
 #include <string>
 #include <vector>
 
+#include "geometry/mesh_measures.h"
+#include "geometry/triangle_mesh.h"
 #include "io/annotations.h"
-#include "io/mesh_measures.h"
-#include "io/triangle_mesh.h"
 #include "morph/coarse_alignment.h"
 #include "morph/cut_transfer.h"
 #include "morph/dense_alignment.h"
@@ -36,8 +36,8 @@ struct CarcassResult {
   /// The morph as a whole; every cut's confidence already includes check.confidence.
   MorphCheck check;
   std::vector<TransferredCut> cuts;
-  std::vector<io::PartMeasure> parts;  ///< in the annotations' part order
-  double cuts_seconds = 0;             ///< check, cut transfer and virtual cutting
+  std::vector<geometry::PartMeasure> parts;  ///< in the annotations' part order
+  double cuts_seconds = 0;                   ///< check, cut transfer and virtual cutting
   double seconds = 0;
 };
 

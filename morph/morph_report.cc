@@ -102,7 +102,7 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
 
 void WriteCutsReport(const std::filesystem::path& path, const io::Annotations& annotations,
                      const std::vector<TransferredCut>& cuts,
-                     const std::vector<io::PartMeasure>& parts, const MorphCheck& check) {
+                     const std::vector<geometry::PartMeasure>& parts, const MorphCheck& check) {
   nlohmann::json j;
   j["format"] = "vbutcher-cuts";
   j["version"] = 1;

@@ -3,8 +3,8 @@
 #include <filesystem>
 #include <vector>
 
+#include "geometry/plane_cut.h"
 #include "io/annotations.h"
-#include "io/plane_cut.h"
 #include "morph/coarse_alignment.h"
 #include "morph/cut_transfer.h"
 #include "morph/dense_alignment.h"
@@ -26,6 +26,6 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
 /// @throws std::runtime_error when the file cannot be written.
 void WriteCutsReport(const std::filesystem::path& path, const io::Annotations& annotations,
                      const std::vector<TransferredCut>& cuts,
-                     const std::vector<io::PartMeasure>& parts, const MorphCheck& check);
+                     const std::vector<geometry::PartMeasure>& parts, const MorphCheck& check);
 
 }  // namespace vb::morph

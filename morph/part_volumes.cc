@@ -4,18 +4,18 @@
 #include <cmath>
 #include <limits>
 
+#include "geometry/mesh_measures.h"
+#include "geometry/mesh_topology.h"
 #include "io/error.h"
-#include "io/mesh_measures.h"
-#include "io/mesh_topology.h"
 #include "morph/point_index.h"
 
 namespace vb::morph {
 
-std::vector<io::PartMeasure> CutParts(const io::TriangleMesh& mesh,
-                                      const std::vector<TransferredCut>& cuts) {
-  std::vector<io::Plane> planes;
+std::vector<geometry::PartMeasure> CutParts(const geometry::TriangleMesh& mesh,
+                                            const std::vector<TransferredCut>& cuts) {
+  std::vector<geometry::Plane> planes;
   for (const TransferredCut& c : cuts) planes.push_back(c.plane);
-  return io::MeasureParts(mesh, planes);
+  return geometry::MeasureParts(mesh, planes);
 }
 
 namespace {
@@ -24,7 +24,7 @@ namespace {
 // nearest of the faces round v that p projects into, else along v's normal. Exact where the
 // closest point lies in v's one ring, which the nearest vertex's does on a mesh finer than
 // its curvature.
-double SignedDistanceNear(const io::TriangleMesh& mesh, const Eigen::Matrix3Xd& normals,
+double SignedDistanceNear(const geometry::TriangleMesh& mesh, const Eigen::Matrix3Xd& normals,
                           const std::vector<int>& faces_of_v, int v, const Eigen::Vector3d& p) {
   double distance = normals.col(v).dot(p - mesh.V.col(v));
   double nearest = std::numeric_limits<double>::infinity();
@@ -51,17 +51,17 @@ double SignedDistanceNear(const io::TriangleMesh& mesh, const Eigen::Matrix3Xd& 
 
 }  // namespace
 
-std::vector<io::PartMeasure> CutTargetParts(const io::TriangleMesh& morphed,
-                                            const std::vector<TransferredCut>& cuts,
-                                            const Eigen::Matrix3Xd& target, double size,
-                                            const PartVolumeOptions& options) {
+std::vector<geometry::PartMeasure> CutTargetParts(const geometry::TriangleMesh& morphed,
+                                                  const std::vector<TransferredCut>& cuts,
+                                                  const Eigen::Matrix3Xd& target, double size,
+                                                  const PartVolumeOptions& options) {
   VB_DEMAND(size > 0 && options.max_offset > 0);
-  std::vector<io::PartMeasure> parts = CutParts(morphed, cuts);
+  std::vector<geometry::PartMeasure> parts = CutParts(morphed, cuts);
   if (parts.empty() || morphed.num_vertices() == 0) return parts;
   Eigen::Matrix3Xd computed_normals;  // for a mesh without
   const Eigen::Matrix3Xd& normals =
-      morphed.has_normals() ? morphed.N : (computed_normals = io::VertexNormals(morphed));
-  const std::vector<std::vector<int>> faces_of = io::FacesOfVertices(morphed);
+      morphed.has_normals() ? morphed.N : (computed_normals = geometry::VertexNormals(morphed));
+  const std::vector<std::vector<int>> faces_of = geometry::FacesOfVertices(morphed);
   const PointIndex index(morphed.V);
   const double max_offset = options.max_offset * size;
   std::vector<double> sum(parts.size(), 0.0);

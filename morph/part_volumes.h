@@ -3,8 +3,8 @@
 #include <Eigen/Core>
 #include <vector>
 
-#include "io/plane_cut.h"
-#include "io/triangle_mesh.h"
+#include "geometry/plane_cut.h"
+#include "geometry/triangle_mesh.h"
 #include "morph/cut_transfer.h"
 
 // Virtual cutting: the parts between transferred cuts and their volumes.
@@ -12,8 +12,8 @@ namespace vb::morph {
 
 /// Virtual cutting: the parts of @p mesh (the target, or the morphed template standing in
 /// for it) between the transferred planes, in the annotations' part order.
-std::vector<io::PartMeasure> CutParts(const io::TriangleMesh& mesh,
-                                      const std::vector<TransferredCut>& cuts);
+std::vector<geometry::PartMeasure> CutParts(const geometry::TriangleMesh& mesh,
+                                            const std::vector<TransferredCut>& cuts);
 
 struct PartVolumeOptions {
   /// Target points farther than this from the morphed surface (a fraction of the template's
@@ -33,9 +33,9 @@ struct PartVolumeOptions {
 /// @param[in] morphed the morphed template, target frame (its vertex normals computed when
 /// it has none).
 /// @param[in] target 3 by N target points, same frame; @p size as TransferCuts'.
-std::vector<io::PartMeasure> CutTargetParts(const io::TriangleMesh& morphed,
-                                            const std::vector<TransferredCut>& cuts,
-                                            const Eigen::Matrix3Xd& target, double size,
-                                            const PartVolumeOptions& options = {});
+std::vector<geometry::PartMeasure> CutTargetParts(const geometry::TriangleMesh& morphed,
+                                                  const std::vector<TransferredCut>& cuts,
+                                                  const Eigen::Matrix3Xd& target, double size,
+                                                  const PartVolumeOptions& options = {});
 
 }  // namespace vb::morph

@@ -29,7 +29,7 @@ Eigen::Vector3d ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Ve
   return a + ab * (vb * denom) + ac * (vc * denom);
 }
 
-SurfaceDistance::SurfaceDistance(const io::TriangleMesh& mesh)
+SurfaceDistance::SurfaceDistance(const geometry::TriangleMesh& mesh)
     : mesh_(mesh), faces_of_vertex_(static_cast<std::size_t>(mesh.num_vertices())) {
   for (int f = 0; f < mesh.num_faces(); ++f)
     for (int k = 0; k < 3; ++k) faces_of_vertex_[static_cast<std::size_t>(mesh.F(k, f))].push_back(f);

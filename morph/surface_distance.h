@@ -4,7 +4,7 @@
 #include <memory>
 #include <vector>
 
-#include "io/triangle_mesh.h"
+#include "geometry/triangle_mesh.h"
 
 namespace vb::morph {
 
@@ -16,14 +16,14 @@ class PointIndex;
 /// Holds a reference to the mesh, which must outlive it and not change.
 class SurfaceDistance {
  public:
-  explicit SurfaceDistance(const io::TriangleMesh& mesh);
-  explicit SurfaceDistance(io::TriangleMesh&&) = delete;
+  explicit SurfaceDistance(const geometry::TriangleMesh& mesh);
+  explicit SurfaceDistance(geometry::TriangleMesh&&) = delete;
   ~SurfaceDistance();
 
   double operator()(const Eigen::Vector3d& p) const;
 
  private:
-  const io::TriangleMesh& mesh_;
+  const geometry::TriangleMesh& mesh_;
   std::vector<std::vector<int>> faces_of_vertex_;
   std::unique_ptr<morph::PointIndex> index_;
 };

@@ -60,7 +60,7 @@ NodeWeights GetWeights(const io::ArchiveReader& r, const std::string& name, Eige
 
 }  // namespace
 
-TemplateArtifact CompileTemplate(const io::TriangleMesh& mesh, const io::Annotations& annotations,
+TemplateArtifact CompileTemplate(const geometry::TriangleMesh& mesh, const io::Annotations& annotations,
                                  const std::string& template_id, int template_version,
                                  const TemplateModelOptions& options) {
   if (template_id.empty()) throw InputError("template: the template id is empty");
@@ -109,7 +109,7 @@ void SaveTemplateArtifact(const std::filesystem::path& path, const TemplateArtif
     descriptions.push_back(cut.description);
     planes.col(static_cast<Eigen::Index>(c)) << cut.plane.point, cut.plane.normal;
     faces.emplace_back();
-    for (const io::SurfacePoint& p : cut.line) {
+    for (const geometry::SurfacePoint& p : cut.line) {
       faces.back().push_back(p.face);
       barycentric.insert(barycentric.end(), p.barycentric.data(), p.barycentric.data() + 3);
     }

@@ -21,7 +21,7 @@ struct TemplateArtifact {
 
 /// Builds the model of @p mesh and checks @p annotations fit it.
 /// @throws InputError as BuildTemplateModel and io::CheckAnnotationsFit.
-TemplateArtifact CompileTemplate(const io::TriangleMesh& mesh, const io::Annotations& annotations,
+TemplateArtifact CompileTemplate(const geometry::TriangleMesh& mesh, const io::Annotations& annotations,
                                  const std::string& template_id, int template_version,
                                  const TemplateModelOptions& options = {});
 

@@ -2,21 +2,21 @@
 
 #include <chrono>
 
+#include "geometry/mesh_measures.h"
+#include "geometry/mesh_topology.h"
 #include "io/error.h"
-#include "io/mesh_measures.h"
-#include "io/mesh_topology.h"
 #include "morph/cloud_skeleton.h"
 #include "morph/mcf_skeleton.h"
 
 namespace vb::morph {
 
-TemplateModel BuildTemplateModel(const io::TriangleMesh& mesh,
+TemplateModel BuildTemplateModel(const geometry::TriangleMesh& mesh,
                                  const TemplateModelOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   if (mesh.num_vertices() < 4 || mesh.num_faces() < 4)
     throw InputError("template: too small to be a closed mesh");
   if (!mesh.V.allFinite()) throw InputError("template: non-finite vertex coordinates");
-  const io::TopologyReport topology = io::AnalyzeTopology(mesh);
+  const geometry::TopologyReport topology = geometry::AnalyzeTopology(mesh);
   if (!topology.is_closed_manifold() || !topology.is_consistently_oriented() ||
       topology.components != 1) {
     throw InputError("template: must be one closed, consistently oriented 2-manifold; it has " +
@@ -24,15 +24,15 @@ TemplateModel BuildTemplateModel(const io::TriangleMesh& mesh,
   }
   TemplateModel m;
   m.mesh = mesh;
-  if (io::SignedVolume(m.mesh) < 0.0)
+  if (geometry::SignedVolume(m.mesh) < 0.0)
     m.mesh.F.row(1).swap(m.mesh.F.row(2));  // make it face outwards
-  m.mesh.N = io::VertexNormals(m.mesh);
+  m.mesh.N = geometry::VertexNormals(m.mesh);
   m.centre = 0.5 * (mesh.V.rowwise().maxCoeff() + mesh.V.rowwise().minCoeff());
-  m.size = io::BoundingBoxDiagonal(mesh.V);
+  m.size = geometry::BoundingBoxDiagonal(mesh.V);
   if (!(m.size > 0.0)) throw InputError("template: has no extent");
   m.V = (mesh.V.colwise() - m.centre) / m.size;
 
-  io::TriangleMesh normalised = m.mesh;
+  geometry::TriangleMesh normalised = m.mesh;
   normalised.V = m.V;
   m.skeleton = options.feature_source == TemplateModelOptions::FeatureSource::kLevelSet
                    ? CloudSkeleton(m.V)

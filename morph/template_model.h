@@ -2,7 +2,7 @@
 
 #include <Eigen/Core>
 
-#include "io/triangle_mesh.h"
+#include "geometry/triangle_mesh.h"
 #include "morph/deformation_graph.h"
 #include "morph/skeleton_graph.h"
 
@@ -29,13 +29,13 @@ struct TemplateModelOptions {
 /// template's normalised frame, x_hat = (x - centre) / size, so every threshold is
 /// relative to the template's size.
 struct TemplateModel {
-  io::TriangleMesh mesh;   ///< as given (original units), with normals
-  Eigen::Vector3d centre;  ///< bounding-box centre
-  double size = 1.0;       ///< bounding-box diagonal
-  Eigen::Matrix3Xd V;      ///< normalised vertex positions
-  SkeletonGraph skeleton;  ///< the skeleton the features come from, normalised
-  FeatureNodes features;   ///< pruned terminals and junctions, normalised
-  DeformationGraph graph;  ///< on the normalised mesh
+  geometry::TriangleMesh mesh;  ///< as given (original units), with normals
+  Eigen::Vector3d centre;       ///< bounding-box centre
+  double size = 1.0;            ///< bounding-box diagonal
+  Eigen::Matrix3Xd V;           ///< normalised vertex positions
+  SkeletonGraph skeleton;       ///< the skeleton the features come from, normalised
+  FeatureNodes features;        ///< pruned terminals and junctions, normalised
+  DeformationGraph graph;       ///< on the normalised mesh
   NodeWeights vertex_weights;
   NodeWeights terminal_weights;
   double seconds = 0.0;  ///< time to build
@@ -47,7 +47,7 @@ struct TemplateModel {
 /// Builds the model. @throws InputError naming the defect when the mesh is not a closed,
 /// consistently oriented, connected 2-manifold, or its skeleton has fewer than three
 /// feature nodes.
-TemplateModel BuildTemplateModel(const io::TriangleMesh& mesh,
+TemplateModel BuildTemplateModel(const geometry::TriangleMesh& mesh,
                                  const TemplateModelOptions& options = {});
 
 }  // namespace vb::morph

@@ -183,7 +183,7 @@ void SaveCalibrationTarget(const std::filesystem::path& path, const CalibrationT
   if (!file) throw std::runtime_error("cannot write " + path.string());
 }
 
-io::TriangleMesh TargetMesh(const CalibrationTarget& target, const Eigen::Isometry3d& X_RigTarget) {
+geometry::TriangleMesh TargetMesh(const CalibrationTarget& target, const Eigen::Isometry3d& X_RigTarget) {
   std::vector<Eigen::Vector3d> V;
   std::vector<Eigen::Vector3i> F;
   double lowest = 0;
@@ -196,7 +196,7 @@ io::TriangleMesh TargetMesh(const CalibrationTarget& target, const Eigen::Isomet
   }
   if (target.rod_radius_m > 0)
     AppendCylinder(Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, lowest), target.rod_radius_m, &V, &F);
-  io::TriangleMesh mesh;
+  geometry::TriangleMesh mesh;
   mesh.V.resize(3, static_cast<Eigen::Index>(V.size()));
   for (std::size_t i = 0; i < V.size(); ++i) mesh.V.col(static_cast<Eigen::Index>(i)) = X_RigTarget * V[i];
   mesh.F.resize(3, static_cast<Eigen::Index>(F.size()));

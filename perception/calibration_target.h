@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "io/triangle_mesh.h"
+#include "geometry/triangle_mesh.h"
 
 namespace vb::perception {
 
@@ -57,7 +57,8 @@ void SaveCalibrationTarget(const std::filesystem::path& path, const CalibrationT
 /// The target as a triangle mesh posed at @p X_RigTarget: spheres (subdivided icosahedra,
 /// within 0.1 mm of the true sphere), the rod from the hook to the lowest sphere and an arm
 /// to each sphere off the rod. For the virtual rig's scene and as a drawing to build from.
-io::TriangleMesh TargetMesh(const CalibrationTarget& target,
-                            const Eigen::Isometry3d& X_RigTarget = Eigen::Isometry3d::Identity());
+geometry::TriangleMesh TargetMesh(
+    const CalibrationTarget& target,
+    const Eigen::Isometry3d& X_RigTarget = Eigen::Isometry3d::Identity());
 
 }  // namespace vb::perception

@@ -8,10 +8,10 @@
 #include <stdexcept>
 #include <string>
 
+#include "geometry/mesh_measures.h"
+#include "geometry/mesh_topology.h"
+#include "geometry/plane_cut.h"
 #include "io/error.h"
-#include "io/mesh_measures.h"
-#include "io/mesh_topology.h"
-#include "io/plane_cut.h"
 #include "perception/carcass_shape.h"
 #include "perception/isotropic_remesh.h"
 #include "perception/marching_tetrahedra.h"
@@ -47,16 +47,16 @@ Eigen::Matrix3d Rotation(double x_deg, double y_deg, double z_deg) {
 CarcassTemplate BuildCarcassTemplate(const TemplateOptions& options) {
   const CarcassShape shape;
   const auto value = [&shape](const Eigen::Vector3d& p) { return shape.Value(p); };
-  io::TriangleMesh fine =
+  geometry::TriangleMesh fine =
       MarchingTetrahedra(value, shape.box_min(), shape.box_max(), options.grid_spacing_m);
   CarcassTemplate t;
   t.mesh = IsotropicRemesh(fine, options.edge_length_m, options.remesh_iterations);
   for (int i = 0; i < t.mesh.num_vertices(); ++i) t.mesh.V.col(i) = shape.Project(t.mesh.V.col(i));
-  t.mesh.N = io::VertexNormals(t.mesh);
+  t.mesh.N = geometry::VertexNormals(t.mesh);
 
-  const io::TopologyReport topology = io::AnalyzeTopology(t.mesh);
+  const geometry::TopologyReport topology = geometry::AnalyzeTopology(t.mesh);
   if (!topology.is_closed_manifold() || !topology.is_consistently_oriented() ||
-      topology.components != 1 || io::SignedVolume(t.mesh) <= 0.0) {
+      topology.components != 1 || geometry::SignedVolume(t.mesh) <= 0.0) {
     throw std::runtime_error(
         "synthetic template is not a closed, oriented, single-piece manifold: " +
         topology.Describe());
@@ -78,14 +78,14 @@ CarcassTemplate BuildCarcassTemplate(const TemplateOptions& options) {
     cut.description = def.description;
     cut.plane.point = Eigen::Vector3d(0.0, 0.0, def.z);
     cut.plane.normal = Eigen::Vector3d::UnitZ();  // towards the gambrel, the part before
-    std::vector<io::SectionLoop> loops = io::PlaneSection(t.mesh, cut.plane);
+    std::vector<geometry::SectionLoop> loops = geometry::PlaneSection(t.mesh, cut.plane);
     if (loops.size() != 1 || !loops[0].closed) {
       throw std::runtime_error(std::string("synthetic template: cut ") + def.name +
                                " meets the surface in " + std::to_string(loops.size()) +
                                " loops, expected one closed loop");
     }
     // The cut must move rigidly with one bone, or the posed cut line would not stay planar.
-    for (const io::SurfacePoint& p : loops[0].points) {
+    for (const geometry::SurfacePoint& p : loops[0].points) {
       for (int k = 0; k < 3; ++k) {
         if (t.weights(def.bone, t.mesh.F(k, p.face)) != 1.0) {
           throw std::runtime_error(std::string("synthetic template: cut ") + def.name +
@@ -171,16 +171,16 @@ PosedCarcass PoseCarcass(const CarcassTemplate& carcass, const CarcassPose& pose
     }
     out.mesh.V.col(i) = skeleton.ToWorld(p);
   }
-  out.mesh.N = io::VertexNormals(out.mesh);
+  out.mesh.N = geometry::VertexNormals(out.mesh);
   for (std::size_t c = 0; c < carcass.annotations.cuts.size(); ++c) {
-    const io::Plane& rest = carcass.annotations.cuts[c].plane;
+    const geometry::Plane& rest = carcass.annotations.cuts[c].plane;
     const int bone = carcass.cut_bones[c];
-    io::Plane plane;
+    geometry::Plane plane;
     plane.point = skeleton.ToWorld(skeleton.MapBody(bone, rest.point));
     plane.normal = (skeleton.WorldRotation(bone) * rest.normal).normalized();
     double sum_squares = 0.0;
-    for (const io::SurfacePoint& p : carcass.annotations.cuts[c].line) {
-      sum_squares += std::pow(plane.SignedDistance(io::Evaluate(out.mesh, p)), 2);
+    for (const geometry::SurfacePoint& p : carcass.annotations.cuts[c].line) {
+      sum_squares += std::pow(plane.SignedDistance(geometry::Evaluate(out.mesh, p)), 2);
     }
     out.cut_line_rms_m.push_back(
         std::sqrt(sum_squares / static_cast<double>(carcass.annotations.cuts[c].line.size())));
@@ -195,20 +195,21 @@ PosedCarcass PoseCarcass(const CarcassTemplate& carcass, const CarcassPose& pose
   return out;
 }
 
-io::TriangleMesh AddNormalNoise(const io::TriangleMesh& mesh, double sigma_m, std::uint64_t seed) {
+geometry::TriangleMesh AddNormalNoise(const geometry::TriangleMesh& mesh, double sigma_m,
+                                      std::uint64_t seed) {
   VB_DEMAND(mesh.has_normals());
-  io::TriangleMesh noisy = mesh;
+  geometry::TriangleMesh noisy = mesh;
   if (sigma_m <= 0.0) return noisy;
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> normal(0.0, sigma_m);
   for (int i = 0; i < mesh.num_vertices(); ++i) noisy.V.col(i) += normal(rng) * mesh.N.col(i);
-  noisy.N = io::VertexNormals(noisy);
+  noisy.N = geometry::VertexNormals(noisy);
   return noisy;
 }
 
-io::PointCloud SampleSurfaceCloud(const PosedCarcass& carcass, const CloudOptions& options,
-                                  std::uint64_t seed) {
-  const io::TriangleMesh& mesh = carcass.mesh;
+geometry::PointCloud SampleSurfaceCloud(const PosedCarcass& carcass, const CloudOptions& options,
+                                        std::uint64_t seed) {
+  const geometry::TriangleMesh& mesh = carcass.mesh;
   VB_DEMAND(mesh.num_faces() > 0 && options.num_points > 0);
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
@@ -231,14 +232,14 @@ io::PointCloud SampleSurfaceCloud(const PosedCarcass& carcass, const CloudOption
     cameras.push_back(carcass.centre_world + Eigen::AngleAxisd(angle, up) * side * 1.0);
   }
   std::vector<std::pair<Eigen::Vector3d, double>> holes;
-  const double diagonal = io::BoundingBoxDiagonal(mesh.V);
+  const double diagonal = geometry::BoundingBoxDiagonal(mesh.V);
   for (int h = 0; options.missing_regions && h < options.num_holes; ++h) {
     const int vertex =
         std::min(static_cast<int>(unit(rng) * mesh.num_vertices()), mesh.num_vertices() - 1);
     holes.emplace_back(mesh.V.col(vertex), diagonal * (0.04 + 0.04 * unit(rng)));
   }
 
-  io::PointCloud cloud;
+  geometry::PointCloud cloud;
   cloud.points.resize(3, options.num_points);
   int kept = 0;
   for (int s = 0; s < options.num_points; ++s) {

@@ -5,9 +5,9 @@
 #include <cstdint>
 #include <vector>
 
+#include "geometry/plane.h"
+#include "geometry/triangle_mesh.h"
 #include "io/annotations.h"
-#include "io/plane.h"
-#include "io/triangle_mesh.h"
 #include "perception/carcass_skeleton.h"
 
 namespace vb::perception {
@@ -15,7 +15,7 @@ namespace vb::perception {
 /// The annotated template of the synthetic lamb carcass and what is needed to pose it.
 struct CarcassTemplate {
   /// Closed, 2-manifold, outward-oriented rest mesh with vertex normals.
-  io::TriangleMesh mesh;
+  geometry::TriangleMesh mesh;
   /// kNumBones by #V skinning weights; each column sums to 1.
   Eigen::Matrix<double, kNumBones, Eigen::Dynamic> weights;
   /// The three primal cuts (leg/loin, loin/rack, rack/shoulder) and the four part names.
@@ -48,9 +48,9 @@ CarcassPose SampleCarcassPose(std::uint64_t seed, const PoseOptions& options = {
 /// A posed template: a target with its ground truth.
 struct PosedCarcass {
   /// Clean posed mesh: the template's faces and vertex order, new positions and normals.
-  io::TriangleMesh mesh;
+  geometry::TriangleMesh mesh;
   /// The true cut planes in the world frame (normals towards the part before the cut).
-  std::vector<io::Plane> cut_planes;
+  std::vector<geometry::Plane> cut_planes;
   /// RMS distance (m) of each template cut line, carried onto this mesh, to its true plane.
   std::vector<double> cut_line_rms_m;
   std::array<Eigen::Vector3d, kNumBones> pivots;  ///< posed skeleton, world frame
@@ -63,7 +63,8 @@ PosedCarcass PoseCarcass(const CarcassTemplate& carcass, const CarcassPose& pose
 
 /// The paper's noise protocol: every vertex moves along its vertex normal by d ~ N(0, sigma^2).
 /// @pre mesh has normals.
-io::TriangleMesh AddNormalNoise(const io::TriangleMesh& mesh, double sigma_m, std::uint64_t seed);
+geometry::TriangleMesh AddNormalNoise(const geometry::TriangleMesh& mesh, double sigma_m,
+                                      std::uint64_t seed);
 
 struct CloudOptions {
   int num_points = 20000;
@@ -75,7 +76,7 @@ struct CloudOptions {
 
 /// Samples points uniformly over the surface of @p carcass.mesh (no connectivity, no
 /// normals), noisy along the surface normal, optionally with the regions a rig would miss.
-io::PointCloud SampleSurfaceCloud(const PosedCarcass& carcass, const CloudOptions& options,
-                                  std::uint64_t seed);
+geometry::PointCloud SampleSurfaceCloud(const PosedCarcass& carcass, const CloudOptions& options,
+                                        std::uint64_t seed);
 
 }  // namespace vb::perception

@@ -11,7 +11,8 @@ DepthRenderer::DepthRenderer(const Intrinsics& intrinsics, const Eigen::Isometry
       depth_m_(static_cast<std::size_t>(intrinsics.width) * intrinsics.height, 0.0f),
       cos_incidence_(depth_m_.size(), 0.0f) {}
 
-void DepthRenderer::Render(const io::TriangleMesh& mesh_Rig, std::optional<double> floor_z_m) {
+void DepthRenderer::Render(const geometry::TriangleMesh& mesh_Rig,
+                           std::optional<double> floor_z_m) {
   const Intrinsics& k = intrinsics_;
   const int w = k.width, h = k.height;
   std::fill(depth_m_.begin(), depth_m_.end(), 0.0f);

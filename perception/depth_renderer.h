@@ -5,7 +5,7 @@
 #include <optional>
 #include <vector>
 
-#include "io/triangle_mesh.h"
+#include "geometry/triangle_mesh.h"
 #include "perception/rig_calibration.h"
 
 namespace vb::perception {
@@ -21,7 +21,8 @@ class DepthRenderer {
   /// Renders @p mesh_Rig (vertices in the rig frame). Pixels that see nothing get depth 0.
   /// @param floor_z_m  when set, the horizontal plane z = floor_z_m of the rig frame is seen
   ///   where the mesh is not (a slaughter-hall floor).
-  void Render(const io::TriangleMesh& mesh_Rig, std::optional<double> floor_z_m = std::nullopt);
+  void Render(const geometry::TriangleMesh& mesh_Rig,
+              std::optional<double> floor_z_m = std::nullopt);
 
   /// Row-major #height x #width depth along the optical axis (m), 0 where nothing was hit.
   const std::vector<float>& depth_m() const { return depth_m_; }

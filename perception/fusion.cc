@@ -39,8 +39,8 @@ std::uint64_t Mix(std::uint64_t k) {  // splitmix64 finaliser: spreads neighbour
 
 }  // namespace
 
-io::PointCloud FusedCloud::ToPointCloud() const {
-  io::PointCloud cloud;
+geometry::PointCloud FusedCloud::ToPointCloud() const {
+  geometry::PointCloud cloud;
   cloud.points = points.leftCols(size);
   cloud.normals = normals.leftCols(size);
   return cloud;

@@ -5,7 +5,7 @@
 #include <span>
 #include <vector>
 
-#include "io/triangle_mesh.h"
+#include "geometry/triangle_mesh.h"
 #include "perception/rig_calibration.h"
 
 namespace vb::perception {
@@ -43,7 +43,7 @@ struct FusedCloud {
   int size = 0;
 
   /// A copy holding just the valid points (allocates; for tools and the morph's input).
-  io::PointCloud ToPointCloud() const;
+  geometry::PointCloud ToPointCloud() const;
 };
 
 /// What one Fuse() call did, for status and benchmarks.

@@ -10,8 +10,8 @@
 
 namespace vb::perception {
 
-io::TriangleMesh IsotropicRemesh(const io::TriangleMesh& mesh, double target_edge_length,
-                                 int iterations) {
+geometry::TriangleMesh IsotropicRemesh(const geometry::TriangleMesh& mesh,
+                                       double target_edge_length, int iterations) {
   using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
   using Point = Kernel::Point_3;
   using SurfaceMesh = CGAL::Surface_mesh<Point>;
@@ -34,7 +34,7 @@ io::TriangleMesh IsotropicRemesh(const io::TriangleMesh& mesh, double target_edg
       CGAL::parameters::number_of_iterations(static_cast<unsigned int>(iterations)));
   sm.collect_garbage();
 
-  io::TriangleMesh out;
+  geometry::TriangleMesh out;
   out.V.resize(3, static_cast<Eigen::Index>(sm.number_of_vertices()));
   for (const auto v : sm.vertices()) {
     const Point& p = sm.point(v);

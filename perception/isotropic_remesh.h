@@ -1,6 +1,6 @@
 #pragma once
 
-#include "io/triangle_mesh.h"
+#include "geometry/triangle_mesh.h"
 
 namespace vb::perception {
 
@@ -10,7 +10,7 @@ namespace vb::perception {
 /// orientation are kept. This is the only translation unit of vb::perception that includes
 /// CGAL, because CGAL headers take about half a minute to compile.
 /// @pre target_edge_length > 0.
-io::TriangleMesh IsotropicRemesh(const io::TriangleMesh& mesh, double target_edge_length,
-                                 int iterations = 5);
+geometry::TriangleMesh IsotropicRemesh(const geometry::TriangleMesh& mesh,
+                                       double target_edge_length, int iterations = 5);
 
 }  // namespace vb::perception

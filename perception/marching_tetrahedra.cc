@@ -18,9 +18,9 @@ constexpr int kTets[6][4] = {{0, 1, 3, 7}, {0, 3, 2, 7}, {0, 2, 6, 7},
 
 }  // namespace
 
-io::TriangleMesh MarchingTetrahedra(const std::function<double(const Eigen::Vector3d&)>& f,
-                                    const Eigen::Vector3d& box_min, const Eigen::Vector3d& box_max,
-                                    double h) {
+geometry::TriangleMesh MarchingTetrahedra(const std::function<double(const Eigen::Vector3d&)>& f,
+                                          const Eigen::Vector3d& box_min,
+                                          const Eigen::Vector3d& box_max, double h) {
   VB_DEMAND(h > 0.0);
   const Eigen::Vector3d extent = box_max - box_min;
   const int nx = static_cast<int>(std::ceil(extent.x() / h)) + 1;
@@ -110,7 +110,7 @@ io::TriangleMesh MarchingTetrahedra(const std::function<double(const Eigen::Vect
       }
     }
   }
-  io::TriangleMesh mesh;
+  geometry::TriangleMesh mesh;
   mesh.V.resize(3, static_cast<Eigen::Index>(vertices.size()));
   for (std::size_t v = 0; v < vertices.size(); ++v)
     mesh.V.col(static_cast<Eigen::Index>(v)) = vertices[v];

@@ -3,7 +3,7 @@
 #include <Eigen/Core>
 #include <functional>
 
-#include "io/triangle_mesh.h"
+#include "geometry/triangle_mesh.h"
 
 namespace vb::perception {
 
@@ -13,8 +13,8 @@ namespace vb::perception {
 /// box boundary the result is closed, 2-manifold and oriented outwards (towards f > 0).
 /// Grid values within 1e-4 h of zero are nudged positive so no vertex sits on a grid node.
 /// @pre h > 0 and the box holds at least one cube.
-io::TriangleMesh MarchingTetrahedra(const std::function<double(const Eigen::Vector3d&)>& f,
-                                    const Eigen::Vector3d& box_min, const Eigen::Vector3d& box_max,
-                                    double h);
+geometry::TriangleMesh MarchingTetrahedra(const std::function<double(const Eigen::Vector3d&)>& f,
+                                          const Eigen::Vector3d& box_min,
+                                          const Eigen::Vector3d& box_max, double h);
 
 }  // namespace vb::perception

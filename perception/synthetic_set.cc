@@ -6,10 +6,10 @@
 #include <cstdio>
 #include <fstream>
 
+#include "geometry/mesh_measures.h"
+#include "geometry/plane_cut.h"
 #include "io/error.h"
 #include "io/mesh_io.h"
-#include "io/mesh_measures.h"
-#include "io/plane_cut.h"
 #include "perception/carcass_generator.h"
 
 namespace vb::perception {
@@ -33,15 +33,16 @@ void WriteYaml(const std::filesystem::path& path, const YAML::Emitter& out) {
   if (!file) throw std::runtime_error(path.string() + ": cannot write");
 }
 
-double Extent(const io::TriangleMesh& mesh, const Eigen::Vector3d& direction) {
+double Extent(const geometry::TriangleMesh& mesh, const Eigen::Vector3d& direction) {
   const Eigen::VectorXd along = direction.transpose() * mesh.V;
   return along.maxCoeff() - along.minCoeff();
 }
 
-std::vector<double> PartVolumes(const io::TriangleMesh& mesh,
-                                const std::vector<io::Plane>& planes) {
+std::vector<double> PartVolumes(const geometry::TriangleMesh& mesh,
+                                const std::vector<geometry::Plane>& planes) {
   std::vector<double> volumes;
-  for (const io::PartMeasure& part : io::MeasureParts(mesh, planes)) volumes.push_back(part.volume);
+  for (const geometry::PartMeasure& part : geometry::MeasureParts(mesh, planes))
+    volumes.push_back(part.volume);
   return volumes;
 }
 
@@ -70,12 +71,12 @@ SyntheticSetSummary WriteSyntheticSet(const SyntheticSetOptions& options) {
                              ": cannot create directory: " + ec.message());
 
   const CarcassTemplate carcass = BuildCarcassTemplate();
-  const std::vector<io::Plane> template_planes = carcass.annotations.planes();
+  const std::vector<geometry::Plane> template_planes = carcass.annotations.planes();
   SyntheticSetSummary summary;
   summary.template_vertices = carcass.mesh.num_vertices();
   summary.template_faces = carcass.mesh.num_faces();
   summary.template_length_m = Extent(carcass.mesh, Eigen::Vector3d::UnitZ());
-  summary.template_volume_m3 = io::SignedVolume(carcass.mesh);
+  summary.template_volume_m3 = geometry::SignedVolume(carcass.mesh);
   summary.template_part_volumes_m3 = PartVolumes(carcass.mesh, template_planes);
   summary.part_names = carcass.annotations.parts;
 
@@ -122,14 +123,14 @@ SyntheticSetSummary WriteSyntheticSet(const SyntheticSetOptions& options) {
     const auto index = static_cast<std::uint64_t>(i);
     const CarcassPose pose = SampleCarcassPose(StreamSeed(options.seed, index, 0), pose_options);
     const PosedCarcass truth = PoseCarcass(carcass, pose);
-    const io::TriangleMesh noisy =
+    const geometry::TriangleMesh noisy =
         AddNormalNoise(truth.mesh, options.sigma_mm / 1000.0, StreamSeed(options.seed, index, 1));
 
     SyntheticTargetSummary target;
     target.name = name;
     target.global_scale = pose.global_scale;
     target.length_m = Extent(truth.mesh, truth.up_world);
-    target.volume_m3 = io::SignedVolume(truth.mesh);
+    target.volume_m3 = geometry::SignedVolume(truth.mesh);
     target.part_volumes_m3 = PartVolumes(truth.mesh, truth.cut_planes);
     target.max_cut_line_rms_m =
         *std::max_element(truth.cut_line_rms_m.begin(), truth.cut_line_rms_m.end());
@@ -141,7 +142,7 @@ SyntheticSetSummary WriteSyntheticSet(const SyntheticSetOptions& options) {
       cloud_options.num_points = options.cloud_points;
       cloud_options.sigma_m = options.sigma_mm / 1000.0;
       cloud_options.missing_regions = options.missing_regions;
-      const io::PointCloud cloud =
+      const geometry::PointCloud cloud =
           SampleSurfaceCloud(truth, cloud_options, StreamSeed(options.seed, index, 2));
       target.cloud_points = cloud.size();
       io::WriteCloud(dir / (target.name + "_cloud.ply"), cloud);

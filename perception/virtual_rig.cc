@@ -13,7 +13,7 @@ PosedCarcass HangCarcass(const CarcassTemplate& carcass, std::uint64_t seed) {
   const Eigen::Vector3d shift(-0.5 * (top.x() + bottom.x()), -0.5 * (top.y() + bottom.y()),
                               -top.z());
   posed.mesh.V.colwise() += shift;
-  for (io::Plane& plane : posed.cut_planes) plane.point += shift;
+  for (geometry::Plane& plane : posed.cut_planes) plane.point += shift;
   for (Eigen::Vector3d& p : posed.pivots) p += shift;
   for (Eigen::Vector3d& p : posed.tails) p += shift;
   posed.centre_world += shift;

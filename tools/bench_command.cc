@@ -8,9 +8,9 @@
 #include <numbers>
 #include <random>
 
+#include "geometry/mesh_measures.h"
 #include "io/error.h"
 #include "io/mesh_io.h"
-#include "io/mesh_measures.h"
 #include "morph/coarse_alignment.h"
 #include "morph/template_model.h"
 #include "perception/carcass_generator.h"
@@ -138,7 +138,7 @@ void Summarise(const std::vector<Row>& rows, const std::string& shape, const std
 
 // A simple non-rigid re-posing for shapes without a skeleton: bend about an axis across the
 // longest extent, twist about it, then a random similarity.
-io::TriangleMesh BendShape(const io::TriangleMesh& mesh, std::uint64_t seed) {
+geometry::TriangleMesh BendShape(const geometry::TriangleMesh& mesh, std::uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   const Eigen::Vector3d lo = mesh.V.rowwise().minCoeff(), hi = mesh.V.rowwise().maxCoeff();
@@ -149,7 +149,7 @@ io::TriangleMesh BendShape(const io::TriangleMesh& mesh, std::uint64_t seed) {
   const Eigen::Vector3d along = Eigen::Vector3d::Unit(axis);
   const Eigen::Vector3d across = Eigen::Vector3d::Unit((axis + 1) % 3);
   const double bend = 0.35 * u(rng), twist = 0.35 * u(rng);  // radians over half the length
-  io::TriangleMesh out = mesh;
+  geometry::TriangleMesh out = mesh;
   // A uniformly random rotation from the seeded generator (Eigen's UnitRandom draws from
   // std::rand, whose state depends on what ran before).
   std::normal_distribution<double> gauss;
@@ -163,7 +163,7 @@ io::TriangleMesh BendShape(const io::TriangleMesh& mesh, std::uint64_t seed) {
                                  (Eigen::AngleAxisd(twist * s, along) * p);
     out.V.col(i) = scale * (q * bent);
   }
-  out.N = io::VertexNormals(out);
+  out.N = geometry::VertexNormals(out);
   return out;
 }
 
@@ -225,7 +225,7 @@ int RunBenchCommand(const BenchOptions& given) {
     }
   }
   for (const std::filesystem::path& path : options.shapes) {
-    io::TriangleMesh mesh;
+    geometry::TriangleMesh mesh;
     morph::TemplateModel model;
     try {
       mesh = io::ReadMesh(path);
@@ -239,11 +239,11 @@ int RunBenchCommand(const BenchOptions& given) {
         "%s: %d vertices, model built in %.2f s (%d terminals, %d junctions, %d graph nodes)\n",
         name.c_str(), mesh.num_vertices(), model.seconds, model.features.num_terminals(),
         model.features.num_junctions(), model.graph.num_nodes());
-    const double size = io::BoundingBoxDiagonal(mesh.V);
+    const double size = geometry::BoundingBoxDiagonal(mesh.V);
     for (double sigma : options.sigmas_mm) {
       groups.emplace_back(name, "mesh", sigma);
       for (int i = 0; i < options.shape_pairs; ++i) {
-        const io::TriangleMesh truth =
+        const geometry::TriangleMesh truth =
             BendShape(model.mesh, options.seed * 7919 + static_cast<std::uint64_t>(i));
         // Noise relative to size as for a 1.2 m carcass, so shapes in other units compare.
         const Eigen::Matrix3Xd points =

@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "io/triangle_mesh.h"
+#include "geometry/triangle_mesh.h"
 #include "morph/dense_alignment.h"
 #include "perception/carcass_generator.h"
 
@@ -44,6 +44,6 @@ int RunFullBench(const BenchOptions& options);
 
 /// A non-rigid re-posing for shapes without a skeleton: a bend about an axis across the
 /// longest extent, a twist about it, then a random similarity. Deterministic in @p seed.
-io::TriangleMesh BendShape(const io::TriangleMesh& mesh, std::uint64_t seed);
+geometry::TriangleMesh BendShape(const geometry::TriangleMesh& mesh, std::uint64_t seed);
 
 }  // namespace vb::tools

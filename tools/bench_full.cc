@@ -10,8 +10,8 @@
 
 #include "io/error.h"
 #include "io/mesh_io.h"
-#include "io/mesh_measures.h"
-#include "io/surface_point.h"
+#include "geometry/mesh_measures.h"
+#include "geometry/surface_point.h"
 #include "morph/coarse_alignment.h"
 #include "morph/cut_transfer.h"
 #include "morph/dense_alignment.h"
@@ -69,7 +69,7 @@ double Rms(const std::vector<double>& v) {
 }
 
 struct Example {
-  io::TriangleMesh morphed;
+  geometry::TriangleMesh morphed;
   std::vector<morph::TransferredCut> cuts;
 };
 
@@ -99,7 +99,7 @@ morph::CoarseResult CoarseFromTruth(const morph::TemplateModel& model,
   const Eigen::Matrix3Xd posed =
       morph::DeformPoints(model.graph, model.vertex_weights, model.V, coarse.state);
   for (Eigen::Index i = 0; i < posed.cols(); ++i) coarse.mesh.V.col(i) = to_target(posed.col(i));
-  coarse.mesh.N = io::VertexNormals(coarse.mesh);
+  coarse.mesh.N = geometry::VertexNormals(coarse.mesh);
   return coarse;
 }
 
@@ -142,23 +142,23 @@ FullRow Evaluate(const morph::TemplateModel& model, const io::Annotations& annot
   row.stretch = r.check.stretch;
   row.ok = true;
   const std::vector<morph::TransferredCut>& cuts = r.cuts;
-  const std::vector<io::PartMeasure>& parts = r.parts;
+  const std::vector<geometry::PartMeasure>& parts = r.parts;
 
   const Eigen::VectorXd e = (dense.mesh.V - truth.mesh.V).colwise().norm();
   row.max_rel = e.maxCoeff() / diagonal;
   row.mean_rel = e.mean() / diagonal;
   row.max_mm = e.maxCoeff() * 1000.0;
   row.mean_mm = e.mean() * 1000.0;
-  const std::vector<io::PartMeasure> true_parts = io::MeasureParts(truth.mesh, truth.cut_planes);
+  const std::vector<geometry::PartMeasure> true_parts = geometry::MeasureParts(truth.mesh, truth.cut_planes);
   for (std::size_t k = 0; k < parts.size() && k < true_parts.size(); ++k) {
     row.volume_rel_error.push_back(parts[k].volume / true_parts[k].volume - 1.0);
     row.area_rel_error.push_back(parts[k].area / true_parts[k].area - 1.0);
   }
   // The true cut line: the expert's line carried onto the clean target by its true pose.
-  auto mean_distance_mm = [&](const io::Plane& plane, std::size_t c) {
+  auto mean_distance_mm = [&](const geometry::Plane& plane, std::size_t c) {
     double sum = 0.0;
-    for (const io::SurfacePoint& sp : annotations.cuts[c].line)
-      sum += std::abs(plane.SignedDistance(io::Evaluate(truth.mesh, sp)));
+    for (const geometry::SurfacePoint& sp : annotations.cuts[c].line)
+      sum += std::abs(plane.SignedDistance(geometry::Evaluate(truth.mesh, sp)));
     return 1000.0 * sum / static_cast<double>(annotations.cuts[c].line.size());
   };
   const std::vector<morph::TransferredCut> floor_cuts =
@@ -179,7 +179,7 @@ FullRow Evaluate(const morph::TemplateModel& model, const io::Annotations& annot
       row.cut_start_mm.push_back(mean_distance_mm(start_cuts[c].plane, c));
   }
   for (std::size_t c = 0; c < cuts.size(); ++c) {
-    const io::Plane& truth_plane = truth.cut_planes[c];
+    const geometry::Plane& truth_plane = truth.cut_planes[c];
     const double cosine = std::clamp(cuts[c].plane.normal.dot(truth_plane.normal), -1.0, 1.0);
     row.cut_angle_deg.push_back(std::acos(cosine) * 180.0 / std::numbers::pi);
     row.cut_distance_mm.push_back(mean_distance_mm(cuts[c].plane, c));
@@ -235,10 +235,10 @@ int RunFullBench(const BenchOptions& options) {
         Eigen::Matrix3Xd points, normals;
         if (std::string(input) == "mesh") {
           // A mesh target carries its own normals, from its (noisy) faces.
-          const io::TriangleMesh noisy =
+          const geometry::TriangleMesh noisy =
               perception::AddNormalNoise(truth.mesh, sigma / 1000.0, seed + 17);
           points = noisy.V;
-          normals = io::VertexNormals(noisy);
+          normals = geometry::VertexNormals(noisy);
         } else {
           perception::CloudOptions cloud;
           cloud.num_points = options.cloud_points;
@@ -315,15 +315,15 @@ int RunFullBench(const BenchOptions& options) {
       std::printf("skipping %s: %s\n", path.string().c_str(), e.what());
       continue;
     }
-    const double size = io::BoundingBoxDiagonal(shape.mesh.V);
+    const double size = geometry::BoundingBoxDiagonal(shape.mesh.V);
     for (double sigma : options.sigmas_mm) {
       ShapeRow sr;
       sr.name = path.stem().string();
       sr.sigma_mm = sigma;
       for (int i = 0; i < options.shape_pairs; ++i) {
-        const io::TriangleMesh truth =
+        const geometry::TriangleMesh truth =
             BendShape(shape.mesh, options.seed * 7919 + static_cast<std::uint64_t>(i));
-        const io::TriangleMesh noisy =
+        const geometry::TriangleMesh noisy =
             perception::AddNormalNoise(truth, sigma / 1000.0 * size / 1.2, 31 + i);
         ++sr.n;
         const std::string step =
@@ -335,7 +335,7 @@ int RunFullBench(const BenchOptions& options) {
           continue;
         }
         const morph::DenseResult dense =
-            morph::AlignDense(shape, coarse, noisy.V, io::VertexNormals(noisy), dense_options);
+            morph::AlignDense(shape, coarse, noisy.V, geometry::VertexNormals(noisy), dense_options);
         progress.Step(step + (dense.ok ? "" : " failed"));
         if (!dense.ok) continue;
         ++sr.ok;

@@ -109,11 +109,11 @@ std::string Count(std::int64_t n) {
 }
 
 // A mesh of @p vertices random points and @p faces triangles over them.
-io::TriangleMesh RandomMesh(std::int64_t vertices, std::int64_t faces) {
+geometry::TriangleMesh RandomMesh(std::int64_t vertices, std::int64_t faces) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> coord(-0.5, 0.5);
   std::uniform_int_distribution<int> index(0, static_cast<int>(vertices) - 1);
-  io::TriangleMesh mesh;
+  geometry::TriangleMesh mesh;
   mesh.V.resize(3, vertices);
   for (std::int64_t i = 0; i < vertices; ++i)
     mesh.V.col(i) = Eigen::Vector3d(coord(rng), coord(rng), coord(rng));
@@ -126,10 +126,10 @@ io::TriangleMesh RandomMesh(std::int64_t vertices, std::int64_t faces) {
   return mesh;
 }
 
-io::PointCloud RandomCloud(std::int64_t points) {
+geometry::PointCloud RandomCloud(std::int64_t points) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> coord(-0.5, 0.5);
-  io::PointCloud cloud;
+  geometry::PointCloud cloud;
   cloud.points.resize(3, points);
   cloud.normals.resize(3, points);
   for (std::int64_t i = 0; i < points; ++i) {
@@ -226,7 +226,7 @@ std::vector<Case> Cases(double scale) {
   const std::string cloud_what = Count(points) + " points with normals";
 
   auto read_mesh = [](const std::filesystem::path& p) {
-    const io::TriangleMesh m = io::ReadMesh(p);
+    const geometry::TriangleMesh m = io::ReadMesh(p);
     return Count(m.num_vertices()) + " vertices, " + Count(m.num_faces()) + " faces";
   };
   auto read_cloud = [](const std::filesystem::path& p) {
@@ -255,7 +255,7 @@ std::vector<Case> Cases(double scale) {
                    read_cloud, ".pcd"});
   cases.push_back({"pcd_compressed_cloud", cloud_what + " (binary_compressed, written by PCL)",
                    [points](const std::filesystem::path& p) {
-                     const io::PointCloud c = RandomCloud(points);
+                     const geometry::PointCloud c = RandomCloud(points);
                      pcl::PointCloud<pcl::PointNormal> pc;
                      pc.resize(static_cast<std::size_t>(c.size()));
                      for (int i = 0; i < c.size(); ++i) {
@@ -273,7 +273,7 @@ std::vector<Case> Cases(double scale) {
                    read_cloud, ".pcd"});
   cases.push_back({"pcd_ascii_cloud", cloud_what,
                    [points](const std::filesystem::path& p) {
-                     const io::PointCloud c = RandomCloud(points);
+                     const geometry::PointCloud c = RandomCloud(points);
                      std::ofstream out(p);
                      out << "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z normal_x normal_y normal_z\n"
                             "SIZE 4 4 4 4 4 4\nTYPE F F F F F F\nCOUNT 1 1 1 1 1 1\nWIDTH "

@@ -20,7 +20,7 @@
 
 #include "io/error.h"
 #include "io/mesh_io.h"
-#include "io/mesh_measures.h"
+#include "geometry/mesh_measures.h"
 #include "morph/coarse_alignment.h"
 #include "morph/dense_alignment.h"
 #include "morph/feature_association.h"
@@ -35,12 +35,12 @@ namespace {
 // A shape's template and targets, whichever set it comes from.
 struct BenchCase {
   std::string name, family, source;
-  io::TriangleMesh template_mesh;
+  geometry::TriangleMesh template_mesh;
   std::vector<ShapeTarget> targets;
   /// Per target, the surface the camera samples: the model itself as its rig poses it (not
   /// the wrap), or the posed lamb.
-  std::vector<io::TriangleMesh> scanned;
-  io::TriangleMesh rest_source;  ///< the model in the rest pose (none for the lamb)
+  std::vector<geometry::TriangleMesh> scanned;
+  geometry::TriangleMesh rest_source;  ///< the model in the rest pose (none for the lamb)
   std::vector<std::string> source_labels;
 };
 
@@ -102,7 +102,7 @@ Eigen::Isometry3d RandomPlacement(Random* random) {
 
 // @p count points drawn uniformly over the area of @p surface (degenerate faces have none),
 // each with its face's unit normal.
-void SampleSurface(const io::TriangleMesh& surface, int count, Random* random,
+void SampleSurface(const geometry::TriangleMesh& surface, int count, Random* random,
                    Eigen::Matrix3Xd* points, Eigen::Matrix3Xd* normals) {
   std::vector<double> cumulative(static_cast<std::size_t>(surface.num_faces()));
   double total = 0;
@@ -338,16 +338,16 @@ int RunShapeBench(const ShapeBenchOptions& options) {
     if (!options.export_dir.empty()) {
       io::WriteMesh(options.export_dir / (c.name + "_template.ply"), c.template_mesh);
       for (std::size_t k = 0; k < c.source_labels.size(); ++k) {
-        io::TriangleMesh source = k == 0 ? c.rest_source : c.scanned[k - 1];
-        source.N = io::VertexNormals(source);
+        geometry::TriangleMesh source = k == 0 ? c.rest_source : c.scanned[k - 1];
+        source.N = geometry::VertexNormals(source);
         io::WriteMesh(options.export_dir / (c.name + "_source_" + c.source_labels[k] + ".ply"), source);
       }
     }
     for (std::size_t t = 0; t < c.targets.size(); ++t) {
       const ShapeTarget& target = c.targets[t];
-      io::TriangleMesh truth_mesh = c.template_mesh;
+      geometry::TriangleMesh truth_mesh = c.template_mesh;
       truth_mesh.V = target.V;
-      truth_mesh.N = io::VertexNormals(truth_mesh);
+      truth_mesh.N = geometry::VertexNormals(truth_mesh);
       if (!options.export_dir.empty()) {
         io::WriteMesh(options.export_dir / (c.name + "_" + target.pair + ".ply"), truth_mesh);
       }
@@ -356,7 +356,7 @@ int RunShapeBench(const ShapeBenchOptions& options) {
       const std::uint64_t seed = Fnv1a(c.name + "/" + target.pair) ^ (options.seed * 0x9e3779b97f4a7c15ull);
       Random placement_random(seed), sample_random(seed + 1), shadow_random(seed + 2);
       const Eigen::Isometry3d X = RandomPlacement(&placement_random);
-      io::TriangleMesh placed = truth_mesh;
+      geometry::TriangleMesh placed = truth_mesh;
       placed.V = X * truth_mesh.V;
       Eigen::Matrix3Xd clean_points, normals;
       SampleSurface(c.scanned[t], options.points, &sample_random, &clean_points, &normals);

@@ -10,7 +10,7 @@
 #include <utility>
 #include <vector>
 
-#include "io/mesh_measures.h"
+#include "geometry/mesh_measures.h"
 #include "morph/feature_association.h"
 
 namespace vb::tools {
@@ -36,7 +36,7 @@ inline double Quantile(std::vector<double> v, double q) {
 /// similarity taking @p rest onto @p truth (same vertex order). Unlike the diagonal of
 /// @p truth's own axis-aligned box, it does not grow when the target is turned.
 inline double TrueSize(const Eigen::Matrix3Xd& rest, const Eigen::Matrix3Xd& truth) {
-  return io::BoundingBoxDiagonal(rest) *
+  return geometry::BoundingBoxDiagonal(rest) *
          morph::Similarity::FromUmeyama(Eigen::umeyama(rest, truth, true)).scale;
 }
 

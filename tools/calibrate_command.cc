@@ -141,7 +141,7 @@ int RunCalibrateCapture(const CalibrateCaptureOptions& options) {
       }
       continue;
     }
-    io::PointCloud cloud;
+    geometry::PointCloud cloud;
     cloud.points = perception::DepthToPoints(depth[c], cam.intrinsics);
     io::WriteCloud(CloudPath(options.out_dir, cam), cloud);
     std::printf("%s (%s): %d points, %d frames averaged -> %s\n", cam.name.c_str(), cam.serial.c_str(),

@@ -102,7 +102,7 @@ int RunVirtualLine(const VirtualLineOptions& options) {
     std::fflush(stdout);
     if (truth) {
       truth << "  - seed: " << seed << "\n    planes:\n";
-      for (const io::Plane& p : posed.cut_planes)
+      for (const geometry::Plane& p : posed.cut_planes)
         truth << "      - {point: [" << p.point.x() << ", " << p.point.y() << ", " << p.point.z()
               << "], normal: [" << p.normal.x() << ", " << p.normal.y() << ", " << p.normal.z()
               << "]}\n";

@@ -57,7 +57,7 @@ int RunMorphCommand(const MorphCommandOptions& options) {
     model = std::move(artifact.model);
     annotations = std::move(artifact.annotations);
   } else {
-    const io::TriangleMesh mesh = io::ReadMesh(options.template_path);
+    const geometry::TriangleMesh mesh = io::ReadMesh(options.template_path);
     if (!options.annotations_path.empty()) {
       annotations = io::LoadAnnotations(options.annotations_path);
       io::CheckAnnotationsFit(annotations, mesh, options.annotations_path.string());
@@ -68,7 +68,7 @@ int RunMorphCommand(const MorphCommandOptions& options) {
       throw InputError(options.template_path.string() + ": " + e.what());
     }
   }
-  const io::PointCloud target = io::ReadCloud(options.target_path);
+  const geometry::PointCloud target = io::ReadCloud(options.target_path);
   // The full stage is the pipeline's own path (morph, whole-morph check, cuts).
   morph::CarcassResult result;
   if (options.stage == "full") {
@@ -142,7 +142,7 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   }
   if (full && (!options.annotations_path.empty() || !options.cuts_path.empty())) {
     const std::vector<morph::TransferredCut>& cuts = result.cuts;
-    const std::vector<io::PartMeasure>& parts = result.parts;
+    const std::vector<geometry::PartMeasure>& parts = result.parts;
     for (const morph::TransferredCut& c : cuts) {
       std::printf(
           "cut %-14s normal (%+.3f %+.3f %+.3f) fit rms %.1f mm slide %+.1f mm (+/- %.1f mm; band "
@@ -152,7 +152,7 @@ int RunMorphCommand(const MorphCommandOptions& options) {
           1000 * c.band_slide, 1000 * c.band_slide_error, c.coverage, c.confidence);
     }
     double total_volume = 0;
-    for (const io::PartMeasure& part : parts) total_volume += part.volume;
+    for (const geometry::PartMeasure& part : parts) total_volume += part.volume;
     for (std::size_t k = 0; k < parts.size(); ++k) {
       // Volumes in litres and areas in square metres, the target being in metres.
       std::printf("part %-10s volume %.3f L (%.1f %% of the carcass) area %.4f m2\n",
@@ -184,7 +184,7 @@ double LoadSeconds(const std::filesystem::path& path, morph::TemplateArtifact* o
 }  // namespace
 
 int RunTemplateCompile(const TemplateCompileOptions& options) {
-  const io::TriangleMesh mesh = io::ReadMesh(options.template_path);
+  const geometry::TriangleMesh mesh = io::ReadMesh(options.template_path);
   const io::Annotations annotations = io::LoadAnnotations(options.annotations_path);
   io::CheckAnnotationsFit(annotations, mesh, options.annotations_path.string());
   const std::string id = options.id.empty() ? annotations.template_name : options.id;

@@ -58,7 +58,7 @@ FileStamp Stamp(const std::string& path) {
 // One loaded state of the scene file: what every stream renders.
 struct Snapshot {
   VirtualScene scene;
-  std::shared_ptr<const io::TriangleMesh> carcass_Rig;  // empty when nothing hangs on the hook
+  std::shared_ptr<const geometry::TriangleMesh> carcass_Rig;  // empty when nothing hangs on the hook
   FileStamp carcass_stamp;
   // Changes only with what the depth image shows (carcass, floor), not with a fault set on
   // some camera: a camera re-renders only then, as a real one would not pause either.
@@ -100,7 +100,7 @@ class SceneWatcher {
           next->carcass_Rig = current_->carcass_Rig;
         } else {
           next->carcass_Rig =
-              std::make_shared<const io::TriangleMesh>(io::ReadMesh(next->scene.carcass_path));
+              std::make_shared<const geometry::TriangleMesh>(io::ReadMesh(next->scene.carcass_path));
         }
       }
       const bool same_geometry = current_ && current_->carcass_Rig == next->carcass_Rig &&
@@ -237,7 +237,7 @@ class DepthStream : public oni::driver::StreamBase {
       if (fault == CameraFault::kMissing) continue;
       if (fault != CameraFault::kFrozen) {
         if (snapshot->geometry_version != rendered_version) {
-          renderer.Render(snapshot->carcass_Rig ? *snapshot->carcass_Rig : io::TriangleMesh{},
+          renderer.Render(snapshot->carcass_Rig ? *snapshot->carcass_Rig : geometry::TriangleMesh{},
                           scene.floor_z_m);
           rendered_version = snapshot->geometry_version;
         }

@@ -18,7 +18,7 @@ Annotations Example() {
   CutAnnotation cut;
   cut.name = "middle";
   cut.description = "halfway up";
-  cut.plane = Plane{{0.5, 0.5, 0.5}, {0, 0, 1}};
+  cut.plane = geometry::Plane{{0.5, 0.5, 0.5}, {0, 0, 1}};
   cut.line = {{0, {0.25, 0.75, 0.0}}, {5, {0.0, 0.5, 0.5}}, {11, {1.0 / 3, 1.0 / 3, 1.0 / 3}}};
   a.cuts = {cut};
   return a;

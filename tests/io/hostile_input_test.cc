@@ -116,7 +116,7 @@ TEST(HostileInputTest, CompressedPcdWrittenByPclStillReads) {
     cloud.push_back(p);
   }
   ASSERT_EQ(pcl::io::savePCDFileBinaryCompressed((dir / "good.pcd").string(), cloud), 0);
-  const PointCloud back = ReadCloud(dir / "good.pcd");
+  const geometry::PointCloud back = ReadCloud(dir / "good.pcd");
   ASSERT_EQ(back.size(), 100);
   EXPECT_FLOAT_EQ(static_cast<float>(back.points(2, 99)), -49.5f);
   ASSERT_TRUE(back.has_normals());
@@ -160,7 +160,7 @@ TEST(HostileInputTest, AsciiPcdReadsValuesNormalsAndDropsInvalidPoints) {
             "SIZE 4 4 4 4 4 4 4\nTYPE F F F U F F F\nCOUNT 1 1 1 1 1 1 1\nWIDTH 3\nHEIGHT 1\n"
             "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n"
             "0.5 -1 2 7 0 0 1\nnan nan nan 0 0 0 1\n3 4 5 7 1 0 0\n");
-  const PointCloud cloud = ReadCloud(dir / "ok.pcd");
+  const geometry::PointCloud cloud = ReadCloud(dir / "ok.pcd");
   ASSERT_EQ(cloud.size(), 2);
   EXPECT_EQ(cloud.points.col(0), Eigen::Vector3d(0.5, -1, 2));
   EXPECT_EQ(cloud.points.col(1), Eigen::Vector3d(3, 4, 5));

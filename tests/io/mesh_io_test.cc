@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "io/error.h"
-#include "io/mesh_measures.h"
+#include "geometry/mesh_measures.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/test_meshes.h"
 
@@ -23,20 +23,20 @@ struct MeshCase {
 class MeshRoundTripTest : public ::testing::TestWithParam<MeshCase> {};
 
 // Irregular coordinates so any reordering or rounding shows.
-TriangleMesh TestMesh(bool normals) {
-  TriangleMesh mesh = test::Sphere(0.7, 2);
+geometry::TriangleMesh TestMesh(bool normals) {
+  geometry::TriangleMesh mesh = test::Sphere(0.7, 2);
   for (int i = 0; i < mesh.num_vertices(); ++i)
     mesh.V.col(i) += Eigen::Vector3d(0.1 * i, -1.0 / 3.0, 1e-7 * i * i);
-  if (normals) mesh.N = VertexNormals(mesh);
+  if (normals) mesh.N = geometry::VertexNormals(mesh);
   return mesh;
 }
 
 TEST_P(MeshRoundTripTest, KeepsVertexOrderFacesAndNormalsExactly) {
   const MeshCase& c = GetParam();
   test::TempDir dir;
-  const TriangleMesh mesh = TestMesh(c.normals);
+  const geometry::TriangleMesh mesh = TestMesh(c.normals);
   WriteMesh(dir / c.file, mesh, {c.encoding});
-  const TriangleMesh back = ReadMesh(dir / c.file);
+  const geometry::TriangleMesh back = ReadMesh(dir / c.file);
   ASSERT_EQ(back.num_vertices(), mesh.num_vertices());
   ASSERT_EQ(back.num_faces(), mesh.num_faces());
   EXPECT_EQ(back.V, mesh.V);
@@ -67,10 +67,10 @@ class CloudRoundTripTest : public ::testing::TestWithParam<const char*> {};
 
 TEST_P(CloudRoundTripTest, KeepsPointsAndNormals) {
   test::TempDir dir;
-  const TriangleMesh mesh = TestMesh(true);
-  PointCloud cloud{mesh.V, mesh.N};
+  const geometry::TriangleMesh mesh = TestMesh(true);
+  geometry::PointCloud cloud{mesh.V, mesh.N};
   WriteCloud(dir / GetParam(), cloud);
-  const PointCloud back = ReadCloud(dir / GetParam());
+  const geometry::PointCloud back = ReadCloud(dir / GetParam());
   ASSERT_EQ(back.size(), cloud.size());
   ASSERT_TRUE(back.has_normals());
   // PCD stores float32; the text and PLY formats are exact.
@@ -92,13 +92,13 @@ class InvalidNormalsTest : public ::testing::TestWithParam<const char*> {};
 
 TEST_P(InvalidNormalsTest, AreDroppedWithAWarningNamingTheFile) {
   test::TempDir dir;
-  const TriangleMesh mesh = TestMesh(true);
+  const geometry::TriangleMesh mesh = TestMesh(true);
   for (const double bad : {0.0, std::nan("")}) {
-    PointCloud cloud{mesh.V, mesh.N};
+    geometry::PointCloud cloud{mesh.V, mesh.N};
     cloud.normals.col(3).setConstant(bad);
     WriteCloud(dir / GetParam(), cloud);
     std::vector<std::string> warnings;
-    const PointCloud back = ReadCloud(dir / GetParam(), {}, &warnings);
+    const geometry::PointCloud back = ReadCloud(dir / GetParam(), {}, &warnings);
     EXPECT_EQ(back.size(), cloud.size());
     EXPECT_FALSE(back.has_normals());
     ASSERT_EQ(warnings.size(), 1u);
@@ -110,11 +110,11 @@ TEST_P(InvalidNormalsTest, AreDroppedWithAWarningNamingTheFile) {
 
 TEST_P(InvalidNormalsTest, OthersAreRescaledToUnitLength) {
   test::TempDir dir;
-  const TriangleMesh mesh = TestMesh(true);
-  PointCloud cloud{mesh.V, 3.0 * mesh.N};
+  const geometry::TriangleMesh mesh = TestMesh(true);
+  geometry::PointCloud cloud{mesh.V, 3.0 * mesh.N};
   WriteCloud(dir / GetParam(), cloud);
   std::vector<std::string> warnings;
-  const PointCloud back = ReadCloud(dir / GetParam(), {}, &warnings);
+  const geometry::PointCloud back = ReadCloud(dir / GetParam(), {}, &warnings);
   EXPECT_TRUE(warnings.empty());
   ASSERT_TRUE(back.has_normals());
   EXPECT_LT((back.normals - mesh.N).cwiseAbs().maxCoeff(), 1e-6);
@@ -128,7 +128,7 @@ INSTANTIATE_TEST_SUITE_P(AllCloudFormats, InvalidNormalsTest,
 
 TEST(MeshIoTest, ReadMeshDropsInvalidNormalsToo) {
   test::TempDir dir;
-  TriangleMesh mesh = TestMesh(true);
+  geometry::TriangleMesh mesh = TestMesh(true);
   mesh.N.setZero();
   WriteMesh(dir / "m.ply", mesh);
   std::vector<std::string> warnings;
@@ -138,7 +138,7 @@ TEST(MeshIoTest, ReadMeshDropsInvalidNormalsToo) {
 
 TEST(MeshIoTest, ReadCloudAcceptsMeshFiles) {
   test::TempDir dir;
-  const TriangleMesh mesh = test::Box();
+  const geometry::TriangleMesh mesh = test::Box();
   WriteMesh(dir / "box.off", mesh);
   EXPECT_EQ(ReadCloud(dir / "box.off").points, mesh.V);
 }
@@ -157,9 +157,9 @@ TEST(MeshIoTest, RefusesUnknownExtensionNamingIt) {
 
 TEST(MeshIoTest, RefusesCloudWhereMeshIsNeeded) {
   test::TempDir dir;
-  WriteCloud(dir / "p.xyz", PointCloud{test::Box().V, {}});
+  WriteCloud(dir / "p.xyz", geometry::PointCloud{test::Box().V, {}});
   EXPECT_THROW(ReadMesh(dir / "p.xyz"), InputError);
-  WriteCloud(dir / "p.ply", PointCloud{test::Box().V, {}});
+  WriteCloud(dir / "p.ply", geometry::PointCloud{test::Box().V, {}});
   EXPECT_THROW(ReadMesh(dir / "p.ply"), InputError);
   EXPECT_THROW(WriteMesh(dir / "m.pcd", test::Box()), InputError);
 }

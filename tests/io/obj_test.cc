@@ -10,7 +10,7 @@ namespace {
 
 TEST(ObjTest, ReadsAllCornerFormsAndNegativeIndices) {
   test::TempDir dir;
-  const TriangleMesh mesh =
+  const geometry::TriangleMesh mesh =
       ReadObj(dir.Write("forms.obj",
                         "o thing\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0 1.0\nvt 0 0\ns off\n"
                         "f 1/1 2/1 3/1\nf -4 -2 -1\n"
@@ -24,14 +24,14 @@ TEST(ObjTest, ReadsAllCornerFormsAndNegativeIndices) {
 
 TEST(ObjTest, KeepsNormalsOnlyWhenTheyArePerVertex) {
   test::TempDir dir;
-  const TriangleMesh per_vertex =
+  const geometry::TriangleMesh per_vertex =
       ReadObj(dir.Write("pv.obj",
                         "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nvn 0 0 -1\n"
                         "f 1//2 2//1 3//1\n"));
   ASSERT_TRUE(per_vertex.has_normals());
   EXPECT_EQ(per_vertex.N.col(0), Eigen::Vector3d(0, 0, -1));
   EXPECT_EQ(per_vertex.N.col(1), Eigen::Vector3d(0, 0, 1));
-  const TriangleMesh per_corner =
+  const geometry::TriangleMesh per_corner =
       ReadObj(dir.Write("pc.obj",
                         "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvn 0 0 1\nvn 0 0 -1\n"
                         "f 1//1 2//1 3//1\nf 2//2 4//2 3//2\n"));
@@ -40,7 +40,7 @@ TEST(ObjTest, KeepsNormalsOnlyWhenTheyArePerVertex) {
 
 TEST(ObjTest, TriangulatesPolygons) {
   test::TempDir dir;
-  const TriangleMesh mesh =
+  const geometry::TriangleMesh mesh =
       ReadObj(dir.Write("pent.obj", "v 0 0 0\nv 1 0 0\nv 2 1 0\nv 1 2 0\nv 0 1 0\nf 1 2 3 4 5\n"));
   EXPECT_EQ(mesh.num_faces(), 3);
 }

@@ -23,7 +23,7 @@ void ExpectRejected(const std::filesystem::path& file,
 
 TEST(OffTest, ReadsCountsOnTheKeywordLineCommentsAndPolygons) {
   test::TempDir dir;
-  const TriangleMesh mesh =
+  const geometry::TriangleMesh mesh =
       ReadOff(dir.Write("q.off", "OFF 4 1 0\n# corners\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 3 2 1 0\n"));
   ASSERT_EQ(mesh.num_faces(), 2);
   EXPECT_EQ(mesh.F.col(0), Eigen::Vector3i(3, 2, 1));
@@ -32,7 +32,7 @@ TEST(OffTest, ReadsCountsOnTheKeywordLineCommentsAndPolygons) {
 
 TEST(OffTest, ReadsNoffNormals) {
   test::TempDir dir;
-  const TriangleMesh mesh =
+  const geometry::TriangleMesh mesh =
       ReadOff(dir.Write("n.off", "NOFF\n3 1 0\n0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 0 1\n3 0 1 2\n"));
   ASSERT_TRUE(mesh.has_normals());
   EXPECT_EQ(mesh.N.col(2), Eigen::Vector3d(0, 0, 1));
@@ -40,7 +40,7 @@ TEST(OffTest, ReadsNoffNormals) {
 
 TEST(OffTest, SkipsColours) {
   test::TempDir dir;
-  const TriangleMesh mesh = ReadOff(dir.Write(
+  const geometry::TriangleMesh mesh = ReadOff(dir.Write(
       "c.off",
       "COFF\n3 1 0\n0 0 0 255 0 0 255\n1 0 0 0 255 0 255\n0 1 0 0 0 255 255\n3 0 1 2 9 9 9\n"));
   EXPECT_EQ(mesh.V.col(1), Eigen::Vector3d(1, 0, 0));

@@ -19,7 +19,7 @@ TEST(PcdTest, ReadsAsciiAndDropsInvalidPoints) {
       dir.Write("a.pcd",
                 "VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 3\nHEIGHT 1\n"
                 "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n0 0 0\nnan nan nan\n1 2 3\n");
-  const PointCloud cloud = ReadPcd(file);
+  const geometry::PointCloud cloud = ReadPcd(file);
   ASSERT_EQ(cloud.size(), 2);
   EXPECT_EQ(cloud.points.col(1), Eigen::Vector3d(1, 2, 3));
   EXPECT_FALSE(cloud.has_normals());
@@ -47,7 +47,7 @@ TEST(PcdTest, ReadsPclsBinaryAndCompressedFilesWithPaddingAndOtherFields) {
   ASSERT_EQ(pcl::io::savePCDFileBinary((dir / "b.pcd").string(), in), 0);
   ASSERT_EQ(pcl::io::savePCDFileBinaryCompressed((dir / "c.pcd").string(), in), 0);
   for (const char* name : {"b.pcd", "c.pcd"}) {
-    const PointCloud cloud = ReadPcd(dir / name);
+    const geometry::PointCloud cloud = ReadPcd(dir / name);
     ASSERT_EQ(cloud.size(), 49) << name;
     ASSERT_TRUE(cloud.has_normals()) << name;
     EXPECT_EQ(cloud.points.col(3), Eigen::Vector3d(2.0, -5.0, 0.25)) << name;  // point 4

@@ -41,7 +41,7 @@ TEST(PlyTest, ReadsQuadsAsTwoTrianglesAndIgnoresExtraProperties) {
       "property float z\nproperty uchar red\nelement face 1\nproperty list uchar int "
       "vertex_indices\n"
       "property float quality\nend_header\n0 0 0 9\n1 0 0 9\n1 1 0 9\n0 1 0 9\n4 0 1 2 3 0.5\n");
-  const TriangleMesh mesh = ReadPly(file);
+  const geometry::TriangleMesh mesh = ReadPly(file);
   ASSERT_EQ(mesh.num_vertices(), 4);
   ASSERT_EQ(mesh.num_faces(), 2);
   EXPECT_EQ(mesh.F.col(0), Eigen::Vector3i(0, 1, 2));
@@ -60,7 +60,7 @@ TEST(PlyTest, ReadsBigEndianBinary) {
     for (int shift = 24; shift >= 0; shift -= 8)
       body.push_back(static_cast<char>((bits >> shift) & 0xFF));
   }
-  const TriangleMesh mesh = ReadPly(dir.Write("be.ply", body));
+  const geometry::TriangleMesh mesh = ReadPly(dir.Write("be.ply", body));
   EXPECT_EQ(mesh.V.col(0), Eigen::Vector3d(1.5, -2.0, 0.25));
 }
 
@@ -81,7 +81,7 @@ TEST(PlyTest, RejectsHeaderClaimingMoreVerticesThanTheFileHolds) {
 
 TEST(PlyTest, RejectsTruncatedBinaryNamingTheElement) {
   test::TempDir dir;
-  const TriangleMesh box = test::Box();
+  const geometry::TriangleMesh box = test::Box();
   WritePly(dir / "box.ply", box, PlyEncoding::kBinaryLittleEndian);
   std::ifstream in(dir / "box.ply", std::ios::binary);
   std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

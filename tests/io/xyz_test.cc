@@ -10,11 +10,11 @@ namespace {
 
 TEST(XyzTest, ReadsPointsWithAndWithoutNormals) {
   test::TempDir dir;
-  const PointCloud plain = ReadXyz(dir.Write("a.xyz", "# scan\n0 0 0\n1 2 3\n\n4 5 6\n"));
+  const geometry::PointCloud plain = ReadXyz(dir.Write("a.xyz", "# scan\n0 0 0\n1 2 3\n\n4 5 6\n"));
   EXPECT_EQ(plain.size(), 3);
   EXPECT_FALSE(plain.has_normals());
   EXPECT_EQ(plain.points.col(2), Eigen::Vector3d(4, 5, 6));
-  const PointCloud with = ReadXyz(dir.Write("b.xyz", "0 0 0 0 0 1\n1 1 1 1 0 0\n"));
+  const geometry::PointCloud with = ReadXyz(dir.Write("b.xyz", "0 0 0 0 0 1\n1 1 1 1 0 0\n"));
   ASSERT_TRUE(with.has_normals());
   EXPECT_EQ(with.normals.col(1), Eigen::Vector3d(1, 0, 0));
 }

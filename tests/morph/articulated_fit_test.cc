@@ -4,7 +4,7 @@
 
 #include <Eigen/Geometry>
 
-#include "io/mesh_measures.h"
+#include "geometry/mesh_measures.h"
 #include "morph/feature_association.h"
 #include "perception/carcass_generator.h"
 #include "tests/support/lamb_fixture.h"

@@ -4,15 +4,15 @@
 
 #include <random>
 
+#include "geometry/mesh_measures.h"
 #include "io/error.h"
-#include "io/mesh_measures.h"
 #include "tests/support/implicit_shapes.h"
 
 namespace vb::morph {
 namespace {
 
 FeatureNodes Features(const Eigen::Matrix3Xd& points) {
-  const double size = io::BoundingBoxDiagonal(points);
+  const double size = geometry::BoundingBoxDiagonal(points);
   return ExtractFeatureNodes(CloudSkeleton(points), {.min_branch_length = 0.09 * size,
                                                      .junction_merge_distance = 0.08 * size});
 }
@@ -34,13 +34,13 @@ void ExpectArmEnds(const FeatureNodes& f) {
 }
 
 TEST(CloudSkeletonTest, FindsTheArmsOfAY) {
-  const io::TriangleMesh y = test::YShape();
+  const geometry::TriangleMesh y = test::YShape();
   ExpectArmEnds(Features(y.V));
 }
 
 TEST(CloudSkeletonTest, CopesWithNormalNoise) {
-  const io::TriangleMesh y = test::YShape();
-  const Eigen::Matrix3Xd normals = io::VertexNormals(y);
+  const geometry::TriangleMesh y = test::YShape();
+  const Eigen::Matrix3Xd normals = geometry::VertexNormals(y);
   std::mt19937_64 rng(5);
   std::normal_distribution<double> noise(
       0.0, 0.015);  // about 1.3 % of the size, like 16 mm on a carcass
@@ -50,7 +50,7 @@ TEST(CloudSkeletonTest, CopesWithNormalNoise) {
 }
 
 TEST(CloudSkeletonTest, BridgesAMissingRegion) {
-  const io::TriangleMesh y = test::YShape();
+  const geometry::TriangleMesh y = test::YShape();
   // Cut a band out of one arm: the cloud falls into two pieces.
   const double angle = 0.3;
   const Eigen::Vector3d arm(std::cos(angle), std::sin(angle), 0.0);

@@ -4,7 +4,7 @@
 
 #include <array>
 
-#include "io/mesh_measures.h"
+#include "geometry/mesh_measures.h"
 #include "perception/carcass_generator.h"
 #include "tests/support/lamb_fixture.h"
 
@@ -22,7 +22,7 @@ TEST_F(CoarseAlignmentTest, AlignsPostureOfPlacedAndPosedCarcasses) {
     const CoarseResult r = AlignCoarse(*model_, target);
     ASSERT_TRUE(r.ok) << r.error;
     ASSERT_EQ(r.mesh.F, model_->mesh.F);
-    const double diagonal = io::BoundingBoxDiagonal(truth.mesh.V);
+    const double diagonal = geometry::BoundingBoxDiagonal(truth.mesh.V);
     const double mean_error = (r.mesh.V - truth.mesh.V).colwise().norm().mean() / diagonal;
     EXPECT_LT(mean_error, 0.04) << "seed " << seed;
     // Without the right association, the carcass would be far off (upside down: ~40 %).
@@ -45,7 +45,7 @@ TEST_F(CoarseAlignmentTest, PlacesPartialCloudsTheSkeletonsAloneTurnOver) {
     const Eigen::Matrix3Xd target = perception::SampleSurfaceCloud(truth, cloud, seed + 29).points;
     const CoarseResult r = AlignCoarse(*model_, target);
     ASSERT_TRUE(r.ok) << r.error;
-    const double diagonal = io::BoundingBoxDiagonal(truth.mesh.V);
+    const double diagonal = geometry::BoundingBoxDiagonal(truth.mesh.V);
     const double mean_error = (r.mesh.V - truth.mesh.V).colwise().norm().mean() / diagonal;
     EXPECT_LT(mean_error, 0.04) << "target " << index;
   }
@@ -66,7 +66,7 @@ TEST_F(CoarseAlignmentTest, KeepsTheDeformationOnlyWhenItBringsTheSurfacesCloser
     const CoarseResult checked = AlignCoarse(*model_, target, terminals_only);
     ASSERT_TRUE(free.ok && checked.ok) << free.error << checked.error;
     ASSERT_TRUE(free.deformation_kept);  // unchecked: always
-    const double diagonal = io::BoundingBoxDiagonal(truth.mesh.V);
+    const double diagonal = geometry::BoundingBoxDiagonal(truth.mesh.V);
     auto error = [&](const CoarseResult& r) {
       return (r.mesh.V - truth.mesh.V).colwise().norm().mean() / diagonal;
     };

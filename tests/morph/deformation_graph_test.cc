@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include "io/mesh_measures.h"
+#include "geometry/mesh_measures.h"
 #include "tests/support/implicit_shapes.h"
 #include "tests/support/test_meshes.h"
 
@@ -11,7 +11,7 @@ namespace {
 
 // Two prongs 0.1 apart joined at the bottom, 1 tall: their tips are close in space but
 // 2 apart along the surface.
-io::TriangleMesh Fork() {
+geometry::TriangleMesh Fork() {
   return test::CapsuleUnion({{{-0.12, 0, 0}, {-0.12, 0, 1}, 0.07},
                              {{0.12, 0, 0}, {0.12, 0, 1}, 0.07},
                              {{-0.12, 0, 0}, {0.12, 0, 0}, 0.07}},
@@ -19,10 +19,10 @@ io::TriangleMesh Fork() {
 }
 
 TEST(DeformationGraphTest, NodesAreSpacedVerticesAndEdgesFollowTheSurface) {
-  const io::TriangleMesh fork = Fork();
+  const geometry::TriangleMesh fork = Fork();
   DeformationGraphOptions options;
   const DeformationGraph g = BuildDeformationGraph(fork, options);
-  const double spacing = options.node_spacing * io::BoundingBoxDiagonal(fork.V);
+  const double spacing = options.node_spacing * geometry::BoundingBoxDiagonal(fork.V);
   ASSERT_GT(g.num_nodes(), 20);
   for (int j = 0; j < g.num_nodes(); ++j) {
     EXPECT_EQ(g.nodes.col(j), fork.V.col(g.node_vertex[static_cast<std::size_t>(j)]));
@@ -40,7 +40,7 @@ TEST(DeformationGraphTest, NodesAreSpacedVerticesAndEdgesFollowTheSurface) {
 }
 
 TEST(DeformationGraphTest, VertexWeightsAreLocalPartitionsOfUnity) {
-  const io::TriangleMesh fork = Fork();
+  const geometry::TriangleMesh fork = Fork();
   DeformationGraphOptions options;
   const DeformationGraph g = BuildDeformationGraph(fork, options);
   const NodeWeights w = VertexWeights(fork, g, options);
@@ -59,7 +59,7 @@ TEST(DeformationGraphTest, VertexWeightsAreLocalPartitionsOfUnity) {
 }
 
 TEST(DeformationGraphTest, FindsBridgesOnlyWhereTheGraphHasThem) {
-  const io::TriangleMesh sphere = test::Sphere(1.0, 4);
+  const geometry::TriangleMesh sphere = test::Sphere(1.0, 4);
   DeformationGraphOptions options;
   EXPECT_TRUE(BuildDeformationGraph(sphere, options).bridges.empty());
   // With one neighbour per node the graph is a forest: every edge is a bridge.

@@ -9,8 +9,8 @@
 #include <random>
 #include <tuple>
 
-#include "io/mesh_measures.h"
-#include "io/surface_point.h"
+#include "geometry/mesh_measures.h"
+#include "geometry/surface_point.h"
 #include "morph/cut_transfer.h"
 #include "morph/association_filter.h"
 #include "morph/cloud_noise.h"
@@ -243,7 +243,7 @@ TEST_F(DenseAlignmentTest, RefinesTheCoarseMorphAndTransfersTheCuts) {
   for (std::uint64_t seed : {1000003u, 1000006u}) {
     const perception::PosedCarcass truth =
         perception::PoseCarcass(*carcass_, perception::SampleCarcassPose(seed));
-    const io::TriangleMesh target = perception::AddNormalNoise(truth.mesh, 0.002, seed);
+    const geometry::TriangleMesh target = perception::AddNormalNoise(truth.mesh, 0.002, seed);
     const CoarseResult coarse = AlignCoarse(*model_, target.V);
     ASSERT_TRUE(coarse.ok) << coarse.error;
     const DenseResult dense = AlignDense(*model_, coarse, target.V, target.N);
@@ -261,7 +261,7 @@ TEST_F(DenseAlignmentTest, RefinesTheCoarseMorphAndTransfersTheCuts) {
     // it may gain little or lose a little: the coarse posture fit already places the lamb's
     // vertices within 6 mm, and sliding along the surface costs the dense energy nothing.)
     const SurfaceDistance on_truth(truth.mesh);
-    auto surface_gap = [&](const io::TriangleMesh& m) {
+    auto surface_gap = [&](const geometry::TriangleMesh& m) {
       double sum = 0;
       for (Eigen::Index i = 0; i < m.V.cols(); ++i) sum += on_truth(m.V.col(i));
       return sum / static_cast<double>(m.V.cols());
@@ -273,7 +273,7 @@ TEST_F(DenseAlignmentTest, RefinesTheCoarseMorphAndTransfersTheCuts) {
                 static_cast<unsigned long long>(seed), 1000 * coarse_gap, 1000 * dense_gap,
                 1000 * coarse_error, 1000 * dense_error);
     EXPECT_LT(dense_gap, 0.4 * coarse_gap) << "seed " << seed;
-    EXPECT_LT(dense_error / io::BoundingBoxDiagonal(truth.mesh.V), 0.006) << "seed " << seed;
+    EXPECT_LT(dense_error / geometry::BoundingBoxDiagonal(truth.mesh.V), 0.006) << "seed " << seed;
 
     const std::vector<TransferredCut> cuts =
         TransferCuts(carcass_->annotations, model_->mesh, dense.mesh, dense.target,
@@ -284,15 +284,15 @@ TEST_F(DenseAlignmentTest, RefinesTheCoarseMorphAndTransfersTheCuts) {
       EXPECT_GT(cuts[c].plane.normal.dot(truth.cut_planes[c].normal), std::cos(6.0 * M_PI / 180))
           << cuts[c].name;
       double distance = 0.0;
-      for (const io::SurfacePoint& p : carcass_->annotations.cuts[c].line)
-        distance += std::abs(cuts[c].plane.SignedDistance(io::Evaluate(truth.mesh, p)));
+      for (const geometry::SurfacePoint& p : carcass_->annotations.cuts[c].line)
+        distance += std::abs(cuts[c].plane.SignedDistance(geometry::Evaluate(truth.mesh, p)));
       distance /= static_cast<double>(carcass_->annotations.cuts[c].line.size());
       EXPECT_LT(distance, 0.015) << cuts[c].name << " seed " << seed;
       EXPECT_NEAR(cuts[c].coverage, 1.0, 1e-12);
       EXPECT_GT(cuts[c].confidence, 0.5);
     }
-    const std::vector<io::PartMeasure> parts = CutParts(dense.mesh, cuts);
-    const std::vector<io::PartMeasure> true_parts = io::MeasureParts(truth.mesh, truth.cut_planes);
+    const std::vector<geometry::PartMeasure> parts = CutParts(dense.mesh, cuts);
+    const std::vector<geometry::PartMeasure> true_parts = geometry::MeasureParts(truth.mesh, truth.cut_planes);
     ASSERT_EQ(parts.size(), 4u);
     for (std::size_t k = 0; k < parts.size(); ++k)
       EXPECT_NEAR(parts[k].volume / true_parts[k].volume, 1.0, 0.12) << "part " << k;
@@ -303,9 +303,9 @@ TEST_F(DenseAlignmentTest, TargetPointsPullTheTemplateOverTheirWholeSurface) {
   // The template with everything below z = 0.1 (neck and forelegs) 30 % longer: the template's
   // own points find the target's sides there, which do not pull it along; the target's points
   // at the new ends must.
-  const io::TriangleMesh& mesh = carcass_->mesh;
-  const double size = io::BoundingBoxDiagonal(mesh.V);
-  io::TriangleMesh target = mesh;
+  const geometry::TriangleMesh& mesh = carcass_->mesh;
+  const double size = geometry::BoundingBoxDiagonal(mesh.V);
+  geometry::TriangleMesh target = mesh;
   for (int v = 0; v < target.num_vertices(); ++v) {
     double& z = target.V(2, v);
     if (z < 0.1) z = 0.1 - 1.3 * (0.1 - z);
@@ -314,7 +314,7 @@ TEST_F(DenseAlignmentTest, TargetPointsPullTheTemplateOverTheirWholeSurface) {
   std::vector<int> ends;
   for (int v = 0; v < target.num_vertices(); ++v)
     if (target.V(2, v) < lowest + 0.02) ends.push_back(v);
-  target.N = io::VertexNormals(target);
+  target.N = geometry::VertexNormals(target);
   const CoarseResult coarse = AlignCoarse(*model_, target.V);
   ASSERT_TRUE(coarse.ok) << coarse.error;
   // Mean distance from the target's lowest points to the morphed template, in template sizes.
@@ -347,7 +347,7 @@ TEST_F(DenseAlignmentTest, NoisyCloudsDoNotShrinkTheMorph) {
   const double true_volume_sum = [&] {
     double sum = 0.0;
     for (std::uint64_t seed : {1000001u, 1000002u, 1000004u, 1000005u})
-      sum += io::SignedVolume(
+      sum += geometry::SignedVolume(
           perception::PoseCarcass(*carcass_, perception::SampleCarcassPose(seed)).mesh);
     return sum;
   }();
@@ -366,7 +366,7 @@ TEST_F(DenseAlignmentTest, NoisyCloudsDoNotShrinkTheMorph) {
       const DenseResult dense = AlignDense(*model_, coarse, target, Eigen::Matrix3Xd(), options);
       ASSERT_TRUE(dense.ok) << dense.error;
       EXPECT_GT(dense.normal_passes, 4) << "seed " << seed;
-      (unbias ? unbiased : biased) += io::SignedVolume(dense.mesh);
+      (unbias ? unbiased : biased) += geometry::SignedVolume(dense.mesh);
     }
   }
   biased /= true_volume_sum;
@@ -406,7 +406,7 @@ TEST_F(DenseAlignmentTest, CloudsDenserThanTheirNoiseMorphAsSparserOnes) {
         EXPECT_GE(dense.stride, 4) << "seed " << seed;
         EXPECT_NEAR(dense.noise, sparse_noise, 0.1 * sparse_noise) << "seed " << seed;
         dense_error += error;
-        volume_error += std::abs(io::SignedVolume(dense.mesh) / io::SignedVolume(truth.mesh) - 1);
+        volume_error += std::abs(geometry::SignedVolume(dense.mesh) / geometry::SignedVolume(truth.mesh) - 1);
       }
     }
   }
@@ -416,11 +416,11 @@ TEST_F(DenseAlignmentTest, CloudsDenserThanTheirNoiseMorphAsSparserOnes) {
 }
 
 TEST_F(DenseAlignmentTest, CutsOnAnIdentityMorphAreTheTemplateCuts) {
-  const io::TriangleMesh& mesh = carcass_->mesh;
+  const geometry::TriangleMesh& mesh = carcass_->mesh;
   const std::vector<TransferredCut> cuts = TransferCuts(carcass_->annotations, mesh, mesh, mesh.V,
-                                                        mesh.N, io::BoundingBoxDiagonal(mesh.V));
+                                                        mesh.N, geometry::BoundingBoxDiagonal(mesh.V));
   for (std::size_t c = 0; c < cuts.size(); ++c) {
-    const io::Plane& expected = carcass_->annotations.cuts[c].plane;
+    const geometry::Plane& expected = carcass_->annotations.cuts[c].plane;
     EXPECT_GT(cuts[c].plane.normal.dot(expected.normal), std::cos(0.5 * M_PI / 180));
     EXPECT_LT(std::abs(expected.SignedDistance(cuts[c].plane.point)), 0.002);
     EXPECT_GT(cuts[c].confidence, 0.8);
@@ -432,8 +432,8 @@ TEST_F(DenseAlignmentTest, CutsOnAnIdentityMorphAreTheTemplateCuts) {
 // slipped along the body by an amount growing from belly to back, as a morph may where the
 // surface does not say where along it a vertex belongs.
 TEST_F(DenseAlignmentTest, CutPlanesTurnWithTheSurfaceNotWithASlipAlongIt) {
-  const io::TriangleMesh& mesh = carcass_->mesh;
-  const double size = io::BoundingBoxDiagonal(mesh.V);
+  const geometry::TriangleMesh& mesh = carcass_->mesh;
+  const double size = geometry::BoundingBoxDiagonal(mesh.V);
   const Eigen::Matrix3d R =
       Eigen::AngleAxisd(0.4, Eigen::Vector3d(1.0, 2.0, 0.5).normalized()).toRotationMatrix();
   const Eigen::Matrix3Xd target = R * mesh.V;
@@ -441,13 +441,13 @@ TEST_F(DenseAlignmentTest, CutPlanesTurnWithTheSurfaceNotWithASlipAlongIt) {
   const double slip = 0.05;  // along the body per unit towards the back: a 2.9 degree tilt
   const double mid = mesh.V.row(1).mean();
   const perception::CarcassShape shape;
-  io::TriangleMesh morphed = mesh;
+  geometry::TriangleMesh morphed = mesh;
   for (int v = 0; v < mesh.num_vertices(); ++v) {
     const Eigen::Vector3d slipped =
         mesh.V.col(v) + slip * (mesh.V(1, v) - mid) * Eigen::Vector3d::UnitZ();
     morphed.V.col(v) = R * shape.Project(slipped);
   }
-  morphed.N = io::VertexNormals(morphed);
+  morphed.N = geometry::VertexNormals(morphed);
 
   CutTransferOptions line_only;
   line_only.normal_band = 0.0;
@@ -475,8 +475,8 @@ TEST_F(DenseAlignmentTest, CutPlanesTurnWithTheSurfaceNotWithASlipAlongIt) {
 // the profile curves. On a straight taper a slide looks like a change of girth, and the fit
 // leaves the plane about where the line put it (rack/shoulder here: 13.5 -> 11.1 mm).
 TEST_F(DenseAlignmentTest, CutPlanesMoveBackAlongTheBodyWhereTheMorphSlid) {
-  const io::TriangleMesh& mesh = carcass_->mesh;
-  const double template_size = io::BoundingBoxDiagonal(mesh.V);
+  const geometry::TriangleMesh& mesh = carcass_->mesh;
+  const double template_size = geometry::BoundingBoxDiagonal(mesh.V);
   const double scale = 1.1;
   const Eigen::Matrix3d R =
       Eigen::AngleAxisd(0.4, Eigen::Vector3d(1.0, 2.0, 0.5).normalized()).toRotationMatrix();
@@ -484,10 +484,10 @@ TEST_F(DenseAlignmentTest, CutPlanesMoveBackAlongTheBodyWhereTheMorphSlid) {
   const Eigen::Matrix3Xd target_normals = R * mesh.N;
   const double slide = 0.01 * template_size;
   const perception::CarcassShape shape;
-  io::TriangleMesh morphed = mesh;
+  geometry::TriangleMesh morphed = mesh;
   for (int v = 0; v < mesh.num_vertices(); ++v)
     morphed.V.col(v) = scale * R * shape.Project(mesh.V.col(v) + slide * Eigen::Vector3d::UnitZ());
-  morphed.N = io::VertexNormals(morphed);
+  morphed.N = geometry::VertexNormals(morphed);
 
   CutTransferOptions no_slide;
   no_slide.slide_band = 0.0;
@@ -500,8 +500,8 @@ TEST_F(DenseAlignmentTest, CutPlanesMoveBackAlongTheBodyWhereTheMorphSlid) {
   double sum_left = 0.0, sum_placed = 0.0;
   for (std::size_t c = 0; c < placed.size(); ++c) {
     SCOPED_TRACE(placed[c].name);
-    const io::Plane& expert = carcass_->annotations.cuts[c].plane;
-    const io::Plane truth{.point = scale * R * expert.point, .normal = R * expert.normal};
+    const geometry::Plane& expert = carcass_->annotations.cuts[c].plane;
+    const geometry::Plane truth{.point = scale * R * expert.point, .normal = R * expert.normal};
     const double left_off = std::abs(truth.SignedDistance(left[c].plane.point));
     const double placed_off = std::abs(truth.SignedDistance(placed[c].plane.point));
     EXPECT_GT(left_off, 0.6 * scale * slide);  // the line's centroid slid with the morph
@@ -522,20 +522,20 @@ TEST_F(DenseAlignmentTest, CutPlanesMoveBackAlongTheBodyWhereTheMorphSlid) {
 // lies: that band says little, but the slide at the leg / loin cut (0.13 of the size away)
 // says the same of it, and the cuts are placed together (slide_correlation_length).
 TEST_F(DenseAlignmentTest, ACutWhoseBandSaysLittleMovesWithANearOneThatSaysMore) {
-  const io::TriangleMesh& mesh = carcass_->mesh;
-  const double template_size = io::BoundingBoxDiagonal(mesh.V);
+  const geometry::TriangleMesh& mesh = carcass_->mesh;
+  const double template_size = geometry::BoundingBoxDiagonal(mesh.V);
   const double slide = 0.01 * template_size;
   const perception::CarcassShape shape;
-  io::TriangleMesh morphed = mesh;
+  geometry::TriangleMesh morphed = mesh;
   for (int v = 0; v < mesh.num_vertices(); ++v)
     morphed.V.col(v) = shape.Project(mesh.V.col(v) + slide * Eigen::Vector3d::UnitZ());
-  morphed.N = io::VertexNormals(morphed);
+  morphed.N = geometry::VertexNormals(morphed);
   const std::vector<io::CutAnnotation>& cuts = carcass_->annotations.cuts;
   const auto loin_rack = std::find_if(
       cuts.begin(), cuts.end(), [](const io::CutAnnotation& c) { return c.name == "loin_rack"; });
   ASSERT_NE(loin_rack, cuts.end());
   const std::size_t noisy_cut = static_cast<std::size_t>(loin_rack - cuts.begin());
-  const io::TriangleMesh noisy = perception::AddNormalNoise(mesh, 0.02 * template_size, 11u);
+  const geometry::TriangleMesh noisy = perception::AddNormalNoise(mesh, 0.02 * template_size, 11u);
   Eigen::Matrix3Xd target = mesh.V;
   for (int v = 0; v < mesh.num_vertices(); ++v)
     if (std::abs(loin_rack->plane.SignedDistance(mesh.V.col(v))) < 0.06 * template_size)
@@ -561,10 +561,10 @@ TEST_F(DenseAlignmentTest, ACutWhoseBandSaysLittleMovesWithANearOneThatSaysMore)
 // Noise of 2 % of the size along the normals: the band says little, so its fit keeps near
 // the morph's placement (the prior) and reports an error near the prior's.
 TEST_F(DenseAlignmentTest, CutPlanesBarelyMoveWhenTheBandSaysLittle) {
-  const io::TriangleMesh& mesh = carcass_->mesh;
-  const double size = io::BoundingBoxDiagonal(mesh.V);
+  const geometry::TriangleMesh& mesh = carcass_->mesh;
+  const double size = geometry::BoundingBoxDiagonal(mesh.V);
   const double prior = CutTransferOptions{}.slide_sigma * size;
-  const io::TriangleMesh noisy = perception::AddNormalNoise(mesh, 0.02 * size, 7u);
+  const geometry::TriangleMesh noisy = perception::AddNormalNoise(mesh, 0.02 * size, 7u);
   for (const TransferredCut& c :
        TransferCuts(carcass_->annotations, mesh, mesh, noisy.V, mesh.N, size)) {
     SCOPED_TRACE(c.name);
@@ -578,11 +578,11 @@ TEST_F(DenseAlignmentTest, CutPlanesBarelyMoveWhenTheBandSaysLittle) {
 // The same noise, told to the transfer: the band widens by sqrt(noise / slide_band_noise);
 // no noise, or less than slide_band_noise, leaves it as it was.
 TEST_F(DenseAlignmentTest, TheBandWidensWithTheNoise) {
-  const io::TriangleMesh& mesh = carcass_->mesh;
-  const double size = io::BoundingBoxDiagonal(mesh.V);
+  const geometry::TriangleMesh& mesh = carcass_->mesh;
+  const double size = geometry::BoundingBoxDiagonal(mesh.V);
   const CutTransferOptions options;
   const double noise = 0.02;
-  const io::TriangleMesh noisy = perception::AddNormalNoise(mesh, noise * size, 7u);
+  const geometry::TriangleMesh noisy = perception::AddNormalNoise(mesh, noise * size, 7u);
   const auto transfer = [&](double told) {
     return TransferCuts(carcass_->annotations, mesh, mesh, noisy.V, mesh.N, size, options, told);
   };
@@ -615,8 +615,8 @@ TEST_F(DenseAlignmentTest, NoisyBandsReadTheCutNearerWhereItIs) {
   // max_slide_plane_neighbours) and adding back sigma^2 (k1 + k2) take part of that away.
   // Measured: RMS reading 0.0190 of the size before, 0.0153 now (the loin / rack band, whose
   // profile says least, 0.033 -> 0.026).
-  const io::TriangleMesh& mesh = carcass_->mesh;
-  const double template_size = io::BoundingBoxDiagonal(mesh.V);
+  const geometry::TriangleMesh& mesh = carcass_->mesh;
+  const double template_size = geometry::BoundingBoxDiagonal(mesh.V);
   const double noise = 0.013;
   CutTransferOptions before;
   before.max_slide_plane_neighbours = before.slide_plane_neighbours;
@@ -630,8 +630,8 @@ TEST_F(DenseAlignmentTest, NoisyBandsReadTheCutNearerWhereItIs) {
     const perception::CarcassPose pose = perception::SampleCarcassPose(2000 + seed, pose_options);
     const perception::PosedCarcass truth = perception::PoseCarcass(*carcass_, pose);
     const double size = template_size * pose.global_scale;
-    const io::TriangleMesh noisy = perception::AddNormalNoise(truth.mesh, noise * size, 100 + seed);
-    const Eigen::Matrix3Xd normals = io::VertexNormals(noisy);
+    const geometry::TriangleMesh noisy = perception::AddNormalNoise(truth.mesh, noise * size, 100 + seed);
+    const Eigen::Matrix3Xd normals = geometry::VertexNormals(noisy);
     for (const TransferredCut& c : TransferCuts(carcass_->annotations, mesh, truth.mesh, noisy.V,
                                                 normals, size, before, noise)) {
       if (c.band_slide_error == 0.0) continue;  // no reading
@@ -656,17 +656,17 @@ TEST(CutTargetPartsTest, TheTargetTellsAPartsVolumeWhereTheMorphStayedThinner) {
   // A unit sphere morph inside a carcass of radius 1.05, cut through the centre: each half's
   // volume is the larger sphere's, to first order in the gap, and points far from the morph
   // (a stray cluster) are not counted.
-  const io::TriangleMesh morph = test::Sphere(1.0, 4);  // without normals: they are computed
+  const geometry::TriangleMesh morph = test::Sphere(1.0, 4);  // without normals: they are computed
   const double r = 1.05;
-  const io::TriangleMesh carcass = test::Sphere(r, 5);
+  const geometry::TriangleMesh carcass = test::Sphere(r, 5);
   Eigen::Matrix3Xd target(3, carcass.num_vertices() + 200);
   target << carcass.V, Eigen::Vector3d(0.0, 0.0, 1.6).replicate(1, 200);
   const std::vector<TransferredCut> cuts = {TransferredCut{}};  // the plane z = 0
   const double size = 2.0 * std::sqrt(3.0);
-  const std::vector<io::PartMeasure> alone = CutParts(morph, cuts);
-  const std::vector<io::PartMeasure> told = CutTargetParts(morph, cuts, target, size);
+  const std::vector<geometry::PartMeasure> alone = CutParts(morph, cuts);
+  const std::vector<geometry::PartMeasure> told = CutTargetParts(morph, cuts, target, size);
   ASSERT_EQ(told.size(), 2u);
-  const std::vector<io::PartMeasure> truth = CutParts(carcass, cuts);
+  const std::vector<geometry::PartMeasure> truth = CutParts(carcass, cuts);
   for (std::size_t k = 0; k < 2; ++k) {
     SCOPED_TRACE(k);
     const double half = truth[k].volume;
@@ -681,18 +681,18 @@ TEST(CutTargetPartsTest, TheTargetTellsAPartsVolumeWhereTheMorphStayedThinner) {
   // Too few target points in a part: the morph's volume stands.
   PartVolumeOptions few;
   few.min_points = carcass.num_vertices();
-  const std::vector<io::PartMeasure> kept = CutTargetParts(morph, cuts, target, size, few);
+  const std::vector<geometry::PartMeasure> kept = CutTargetParts(morph, cuts, target, size, few);
   for (std::size_t k = 0; k < 2; ++k) EXPECT_EQ(kept[k].volume, alone[k].volume);
 }
 
 TEST_F(DenseAlignmentTest, CutPlanesFallBackToTheLineWhenNormalsFixNoRotation) {
   // Morphed normals that all point one way (as on a flat patch) leave the turn about that
   // direction open, so the plane comes from the line alone.
-  io::TriangleMesh morphed = carcass_->mesh;
+  geometry::TriangleMesh morphed = carcass_->mesh;
   morphed.N = Eigen::Vector3d::UnitX().replicate(1, morphed.num_vertices());
   for (const TransferredCut& c :
        TransferCuts(carcass_->annotations, carcass_->mesh, morphed, morphed.V, carcass_->mesh.N,
-                    io::BoundingBoxDiagonal(morphed.V))) {
+                    geometry::BoundingBoxDiagonal(morphed.V))) {
     EXPECT_FALSE(c.oriented_by_normals) << c.name;
     EXPECT_GT(c.confidence, 0.8) << c.name;
   }
@@ -700,8 +700,8 @@ TEST_F(DenseAlignmentTest, CutPlanesFallBackToTheLineWhenNormalsFixNoRotation) {
 
 TEST_F(DenseAlignmentTest, UnseenCutsGetNoConfidence) {
   // The target holds only the far end of the carcass: every cut line is out of its reach.
-  const io::TriangleMesh& mesh = carcass_->mesh;
-  const double size = io::BoundingBoxDiagonal(mesh.V);
+  const geometry::TriangleMesh& mesh = carcass_->mesh;
+  const double size = geometry::BoundingBoxDiagonal(mesh.V);
   std::vector<int> far;
   for (int v = 0; v < mesh.num_vertices(); ++v) {
     bool near_a_cut = false;

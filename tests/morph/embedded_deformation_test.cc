@@ -25,7 +25,7 @@ class EmbeddedDeformationTest : public ::testing::Test {
     }
     return c;
   }
-  io::TriangleMesh mesh_;
+  geometry::TriangleMesh mesh_;
   DeformationGraphOptions options_;
   DeformationGraph graph_;
   NodeWeights weights_;

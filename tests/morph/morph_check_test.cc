@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include "io/mesh_measures.h"
+#include "geometry/mesh_measures.h"
 #include "morph/morph_carcass.h"
 #include "perception/carcass_generator.h"
 #include "tests/support/lamb_fixture.h"
@@ -27,7 +27,7 @@ Eigen::Matrix3Xd HangingCloud(const perception::CarcassTemplate& carcass, std::u
 
 double MeanErrorRelative(const CarcassResult& r, const perception::PosedCarcass& truth) {
   return (r.dense.mesh.V - truth.mesh.V).colwise().norm().mean() /
-         io::BoundingBoxDiagonal(truth.mesh.V);
+         geometry::BoundingBoxDiagonal(truth.mesh.V);
 }
 
 TEST_F(MorphCheckTest, TrustsAGoodMorphAndDistrustsAnUpsideDownOne) {

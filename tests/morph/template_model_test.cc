@@ -9,7 +9,7 @@
 namespace vb::morph {
 namespace {
 
-void ExpectRejected(const io::TriangleMesh& mesh, const char* fragment,
+void ExpectRejected(const geometry::TriangleMesh& mesh, const char* fragment,
                     const TemplateModelOptions& options = {}) {
   try {
     BuildTemplateModel(mesh, options);
@@ -20,13 +20,13 @@ void ExpectRejected(const io::TriangleMesh& mesh, const char* fragment,
 }
 
 TEST(TemplateModelTest, RefusesMeshesItCannotMorph) {
-  io::TriangleMesh open = test::Box();
+  geometry::TriangleMesh open = test::Box();
   open.F.conservativeResize(3, 11);
   ExpectRejected(open, "boundary edges");
-  io::TriangleMesh flipped = test::Box();
+  geometry::TriangleMesh flipped = test::Box();
   std::swap(flipped.F(1, 3), flipped.F(2, 3));
   ExpectRejected(flipped, "inconsistently oriented");
-  io::TriangleMesh bad = test::Box();
+  geometry::TriangleMesh bad = test::Box();
   bad.V(0, 2) = std::nan("");
   ExpectRejected(bad, "non-finite");
   // A straight tube has two ends and nothing else: no pose can be read from it. (Checked
@@ -39,7 +39,7 @@ TEST(TemplateModelTest, RefusesMeshesItCannotMorph) {
 }
 
 TEST(TemplateModelTest, NormalisesAndPrecomputesEverything) {
-  io::TriangleMesh y = test::YShape();
+  geometry::TriangleMesh y = test::YShape();
   y.V = (y.V * 250.0).array() + 1000.0;  // any units, anywhere
   const TemplateModel m = BuildTemplateModel(y);
   EXPECT_NEAR((m.V.rowwise().maxCoeff() - m.V.rowwise().minCoeff()).norm(), 1.0, 1e-12);

@@ -2,9 +2,9 @@
 
 #include <gtest/gtest.h>
 
-#include "io/mesh_measures.h"
-#include "io/mesh_topology.h"
-#include "io/plane_cut.h"
+#include "geometry/mesh_measures.h"
+#include "geometry/mesh_topology.h"
+#include "geometry/plane_cut.h"
 
 namespace vb::perception {
 namespace {
@@ -23,15 +23,15 @@ class CarcassTemplateTest : public ::testing::Test {
 };
 CarcassTemplate* CarcassTemplateTest::dut_ = nullptr;
 
-double Sum(const std::vector<io::PartMeasure>& parts) {
+double Sum(const std::vector<geometry::PartMeasure>& parts) {
   double sum = 0.0;
-  for (const io::PartMeasure& p : parts) sum += p.volume;
+  for (const geometry::PartMeasure& p : parts) sum += p.volume;
   return sum;
 }
 
 TEST_F(CarcassTemplateTest, IsAWatertightOrientedManifoldOfLambSize) {
-  const io::TriangleMesh& mesh = dut().mesh;
-  const io::TopologyReport topology = io::AnalyzeTopology(mesh);
+  const geometry::TriangleMesh& mesh = dut().mesh;
+  const geometry::TopologyReport topology = geometry::AnalyzeTopology(mesh);
   EXPECT_TRUE(topology.is_closed_manifold()) << topology.Describe();
   EXPECT_TRUE(topology.is_consistently_oriented()) << topology.Describe();
   EXPECT_EQ(topology.components, 1);
@@ -42,14 +42,14 @@ TEST_F(CarcassTemplateTest, IsAWatertightOrientedManifoldOfLambSize) {
   EXPECT_GE(length, 1.0);
   EXPECT_LE(length, 1.3);
   // A dressed lamb carcass weighs roughly 15-30 kg at about 1 kg per litre.
-  EXPECT_GT(io::SignedVolume(mesh), 0.015);
-  EXPECT_LT(io::SignedVolume(mesh), 0.035);
+  EXPECT_GT(geometry::SignedVolume(mesh), 0.015);
+  EXPECT_LT(geometry::SignedVolume(mesh), 0.035);
   ASSERT_TRUE(mesh.has_normals());
   EXPECT_NEAR(mesh.N.colwise().norm().minCoeff(), 1.0, 1e-9);
 }
 
 TEST_F(CarcassTemplateTest, HangsFromTheHindLegs) {
-  const io::TriangleMesh& mesh = dut().mesh;
+  const geometry::TriangleMesh& mesh = dut().mesh;
   Eigen::Index top = 0, bottom = 0;
   mesh.V.row(2).maxCoeff(&top);
   mesh.V.row(2).minCoeff(&bottom);
@@ -74,12 +74,12 @@ TEST_F(CarcassTemplateTest, ThreeCutsOrderedAlongTheSpineEachOneClosedLoop) {
   EXPECT_EQ(a.face_count, dut().mesh.num_faces());
   for (std::size_t c = 0; c < a.cuts.size(); ++c) {
     const io::CutAnnotation& cut = a.cuts[c];
-    const auto loops = io::PlaneSection(dut().mesh, cut.plane);
+    const auto loops = geometry::PlaneSection(dut().mesh, cut.plane);
     ASSERT_EQ(loops.size(), 1u) << cut.name;
     EXPECT_TRUE(loops[0].closed) << cut.name;
     EXPECT_GE(cut.line.size(), 20u) << cut.name;
-    for (const io::SurfacePoint& p : cut.line) {
-      EXPECT_NEAR(cut.plane.SignedDistance(io::Evaluate(dut().mesh, p)), 0.0, 1e-12);
+    for (const geometry::SurfacePoint& p : cut.line) {
+      EXPECT_NEAR(cut.plane.SignedDistance(geometry::Evaluate(dut().mesh, p)), 0.0, 1e-12);
     }
     if (c > 0) {
       // Each cut lies below the previous one, seen from the gambrel.
@@ -89,10 +89,10 @@ TEST_F(CarcassTemplateTest, ThreeCutsOrderedAlongTheSpineEachOneClosedLoop) {
 }
 
 TEST_F(CarcassTemplateTest, CutsSplitTheCarcassIntoFourPartsThatSumToTheWhole) {
-  const auto parts = io::MeasureParts(dut().mesh, dut().annotations.planes());
+  const auto parts = geometry::MeasureParts(dut().mesh, dut().annotations.planes());
   ASSERT_EQ(parts.size(), 4u);
-  const double total = io::SignedVolume(dut().mesh);
-  for (const io::PartMeasure& p : parts) EXPECT_GT(p.volume, 0.05 * total);
+  const double total = geometry::SignedVolume(dut().mesh);
+  for (const geometry::PartMeasure& p : parts) EXPECT_GT(p.volume, 0.05 * total);
   EXPECT_NEAR(Sum(parts), total, 1e-9 * total);
 }
 
@@ -113,19 +113,19 @@ TEST_P(CarcassTargetTest, KeepsConnectivityAndGroundTruthIsConsistent) {
   EXPECT_LE(pose.global_scale, 1.2);
   const PosedCarcass target = PoseCarcass(dut(), pose);
   ASSERT_EQ(target.mesh.F, dut().mesh.F);
-  const io::TopologyReport topology = io::AnalyzeTopology(target.mesh);
+  const geometry::TopologyReport topology = geometry::AnalyzeTopology(target.mesh);
   EXPECT_TRUE(topology.is_closed_manifold() && topology.is_consistently_oriented())
       << topology.Describe();
-  const double volume = io::SignedVolume(target.mesh);
+  const double volume = geometry::SignedVolume(target.mesh);
   EXPECT_GT(volume, 0.0);
 
   ASSERT_EQ(target.cut_planes.size(), 3u);
   for (std::size_t c = 0; c < 3; ++c) {
-    const io::Plane& plane = target.cut_planes[c];
+    const geometry::Plane& plane = target.cut_planes[c];
     // The template's cut line, carried by vertex correspondence, lies on the true plane...
     EXPECT_LT(target.cut_line_rms_m[c], 1e-9) << "cut " << c;
     // ...which meets the target in exactly one closed loop.
-    const auto loops = io::PlaneSection(target.mesh, plane);
+    const auto loops = geometry::PlaneSection(target.mesh, plane);
     ASSERT_EQ(loops.size(), 1u) << "cut " << c;
     EXPECT_TRUE(loops[0].closed);
     EXPECT_GT(plane.normal.dot(target.up_world), 0.8) << "a cut stays roughly across the spine";
@@ -134,8 +134,8 @@ TEST_P(CarcassTargetTest, KeepsConnectivityAndGroundTruthIsConsistent) {
           << "cuts keep their order";
     }
   }
-  const auto parts = io::MeasureParts(target.mesh, target.cut_planes);
-  for (const io::PartMeasure& p : parts) EXPECT_GT(p.volume, 0.05 * volume);
+  const auto parts = geometry::MeasureParts(target.mesh, target.cut_planes);
+  for (const geometry::PartMeasure& p : parts) EXPECT_GT(p.volume, 0.05 * volume);
   EXPECT_NEAR(Sum(parts), volume, 1e-9 * volume);
 }
 
@@ -159,7 +159,7 @@ TEST_F(CarcassTemplateTest, PosesAreDeterministicPerSeedAndDifferAcrossSeeds) {
 
 TEST_F(CarcassTemplateTest, NormalNoiseFollowsThePaperProtocol) {
   const double sigma = 0.004;
-  const io::TriangleMesh noisy = AddNormalNoise(dut().mesh, sigma, 7);
+  const geometry::TriangleMesh noisy = AddNormalNoise(dut().mesh, sigma, 7);
   ASSERT_EQ(noisy.F, dut().mesh.F);
   const Eigen::Matrix3Xd d = noisy.V - dut().mesh.V;
   const Eigen::VectorXd along = (d.array() * dut().mesh.N.array()).colwise().sum().transpose();
@@ -178,7 +178,7 @@ TEST_F(CarcassTemplateTest, CloudsSampleTheSurfaceAndMissRegionsOnRequest) {
   CloudOptions options;
   options.num_points = 5000;
   options.sigma_m = 0.002;
-  const io::PointCloud full = SampleSurfaceCloud(target, options, 1);
+  const geometry::PointCloud full = SampleSurfaceCloud(target, options, 1);
   EXPECT_EQ(full.size(), 5000);
   EXPECT_FALSE(full.has_normals());
   // Every sample is near the surface: within an edge length plus 6 sigma of a vertex.
@@ -188,7 +188,7 @@ TEST_F(CarcassTemplateTest, CloudsSampleTheSurfaceAndMissRegionsOnRequest) {
     EXPECT_LT(nearest, 0.03 + 6 * options.sigma_m);
   }
   options.missing_regions = true;
-  const io::PointCloud partial = SampleSurfaceCloud(target, options, 1);
+  const geometry::PointCloud partial = SampleSurfaceCloud(target, options, 1);
   EXPECT_LT(partial.size(), full.size());
   EXPECT_GT(partial.size(), full.size() / 2);
 }

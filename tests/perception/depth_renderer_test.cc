@@ -17,7 +17,7 @@ Eigen::Isometry3d LookingAlongX() {
 TEST(DepthRendererTest, SphereDepthMatchesGeometry) {
   const Intrinsics k;
   DepthRenderer dut(k, LookingAlongX());
-  io::TriangleMesh sphere = test::Sphere(0.2, 5);
+  geometry::TriangleMesh sphere = test::Sphere(0.2, 5);
   sphere.V.row(0).array() += 1.5;  // centre 1.5 m ahead
   dut.Render(sphere);
   const auto centre = static_cast<std::size_t>(std::lround(k.cy) * k.width + std::lround(k.cx));
@@ -41,7 +41,7 @@ TEST(DepthRendererTest, FloorIsSeenWhereNothingElseIs) {
   const Eigen::Isometry3d X_RigCam =
       LookAt(Eigen::Vector3d(0, 0, 1.0), Eigen::Vector3d(std::sqrt(3.0), 0, 0));
   DepthRenderer dut(k, X_RigCam);
-  dut.Render(io::TriangleMesh{}, 0.0);
+  dut.Render(geometry::TriangleMesh{}, 0.0);
   // Along the optical axis the floor is 2 m away (1 m / sin 30 deg); pixel (u, v) looks
   // along d_C = ((u - cx) / fx, (v - cy) / fy, 1).
   for (const auto& [u, v] : {std::pair{320, 240}, std::pair{100, 400}, std::pair{600, 50}}) {

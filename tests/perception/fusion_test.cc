@@ -6,7 +6,7 @@
 #include <random>
 
 #include "io/error.h"
-#include "io/mesh_measures.h"
+#include "geometry/mesh_measures.h"
 #include "morph/point_index.h"
 #include "perception/depth_noise.h"
 #include "perception/depth_renderer.h"
@@ -50,8 +50,8 @@ class FusionTest : public ::testing::Test {
 
   // Template vertices some camera sees (in its image, facing it, not occluded).
   std::vector<int> VisibleVertices() const {
-    const io::TriangleMesh& mesh = carcass_->mesh;
-    const Eigen::Matrix3Xd normals = io::VertexNormals(mesh);
+    const geometry::TriangleMesh& mesh = carcass_->mesh;
+    const Eigen::Matrix3Xd normals = geometry::VertexNormals(mesh);
     std::vector<int> visible;
     for (int i = 0; i < mesh.num_vertices(); ++i) {
       for (std::size_t c = 0; c < rig_.cameras.size(); ++c) {
@@ -93,7 +93,7 @@ TEST_F(FusionTest, FusedCloudLiesOnTheSurfaceAndCoversWhatTheCamerasSee) {
   const morph::SurfaceDistance distance(carcass_->mesh);
   double sum = 0;
   int outward = 0;
-  const Eigen::Matrix3Xd normals = io::VertexNormals(carcass_->mesh);
+  const Eigen::Matrix3Xd normals = geometry::VertexNormals(carcass_->mesh);
   const morph::PointIndex vertices(carcass_->mesh.V);
   for (int i = 0; i < cloud.size; ++i) {
     sum += distance(cloud.points.col(i));

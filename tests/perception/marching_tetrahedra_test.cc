@@ -4,8 +4,8 @@
 
 #include <numbers>
 
-#include "io/mesh_measures.h"
-#include "io/mesh_topology.h"
+#include "geometry/mesh_measures.h"
+#include "geometry/mesh_topology.h"
 
 namespace vb::perception {
 namespace {
@@ -20,13 +20,13 @@ class MarchingTetrahedraTest : public ::testing::TestWithParam<double> {};
 TEST_P(MarchingTetrahedraTest, SphereIsClosedOrientedAndHasTheRightVolume) {
   const double h = GetParam();
   const auto sphere = [](const Eigen::Vector3d& p) { return p.norm() - 1.0; };
-  const io::TriangleMesh mesh = MarchingTetrahedra(sphere, Eigen::Vector3d::Constant(-1.5),
-                                                   Eigen::Vector3d::Constant(1.5), h);
-  const io::TopologyReport r = io::AnalyzeTopology(mesh);
+  const geometry::TriangleMesh mesh = MarchingTetrahedra(sphere, Eigen::Vector3d::Constant(-1.5),
+                                                         Eigen::Vector3d::Constant(1.5), h);
+  const geometry::TopologyReport r = geometry::AnalyzeTopology(mesh);
   EXPECT_TRUE(r.is_closed_manifold()) << r.Describe();
   EXPECT_TRUE(r.is_consistently_oriented()) << r.Describe();
   EXPECT_EQ(r.euler_characteristic(), 2);
-  EXPECT_NEAR(io::SignedVolume(mesh), 4.0 / 3.0 * std::numbers::pi, 0.05 * 4.0);
+  EXPECT_NEAR(geometry::SignedVolume(mesh), 4.0 / 3.0 * std::numbers::pi, 0.05 * 4.0);
 }
 
 // h = 0.25 puts grid nodes exactly on the sphere, the case the nudge exists for.
@@ -36,8 +36,9 @@ TEST(MarchingTetrahedraTopologyTest, TorusHasGenusOneAndSeparateBlobsStaySeparat
   const auto torus = [](const Eigen::Vector3d& p) {
     return std::hypot(std::hypot(p.x(), p.y()) - 1.0, p.z()) - 0.35;
   };
-  io::TriangleMesh mesh = MarchingTetrahedra(torus, {-1.6, -1.6, -0.6}, {1.6, 1.6, 0.6}, 0.08);
-  io::TopologyReport r = io::AnalyzeTopology(mesh);
+  geometry::TriangleMesh mesh =
+      MarchingTetrahedra(torus, {-1.6, -1.6, -0.6}, {1.6, 1.6, 0.6}, 0.08);
+  geometry::TopologyReport r = geometry::AnalyzeTopology(mesh);
   EXPECT_TRUE(r.is_closed_manifold()) << r.Describe();
   EXPECT_EQ(r.euler_characteristic(), 0);
 
@@ -46,10 +47,10 @@ TEST(MarchingTetrahedraTopologyTest, TorusHasGenusOneAndSeparateBlobsStaySeparat
            0.6;
   };
   mesh = MarchingTetrahedra(blobs, {-2, -1, -1}, {2, 1, 1}, 0.1);
-  r = io::AnalyzeTopology(mesh);
+  r = geometry::AnalyzeTopology(mesh);
   EXPECT_TRUE(r.is_closed_manifold()) << r.Describe();
   EXPECT_EQ(r.components, 2);
-  EXPECT_GT(io::SignedVolume(mesh), 0.0);
+  EXPECT_GT(geometry::SignedVolume(mesh), 0.0);
 }
 
 }  // namespace

@@ -42,7 +42,7 @@ Eigen::Isometry3d Perturb(const Eigen::Isometry3d& X, double mm, double deg, std
 }
 
 // What @p cam sees of @p mesh_Rig (and the floor): one frame at the sensor model.
-std::vector<std::uint16_t> NoisyDepth(const CameraCalibration& cam, const io::TriangleMesh& mesh_Rig,
+std::vector<std::uint16_t> NoisyDepth(const CameraCalibration& cam, const geometry::TriangleMesh& mesh_Rig,
                                       std::uint64_t seed) {
   DepthRenderer renderer(cam.intrinsics, cam.X_RigCam);
   renderer.Render(mesh_Rig, -2.2);
@@ -58,7 +58,7 @@ int Readings(const std::vector<std::uint16_t>& depth) {
 }
 
 // The same, as points.
-Eigen::Matrix3Xd NoisyView(const CameraCalibration& cam, const io::TriangleMesh& mesh_Rig,
+Eigen::Matrix3Xd NoisyView(const CameraCalibration& cam, const geometry::TriangleMesh& mesh_Rig,
                            std::uint64_t seed) {
   return DepthToPoints(NoisyDepth(cam, mesh_Rig, seed), cam.intrinsics);
 }
@@ -168,7 +168,7 @@ class RigCalibrationTest : public ::testing::Test {
 
   // Hangs @p mesh_Rig on the hook of the virtual rig, written as @p file (a new file each
   // time, so the driver reloads it), the sensor noise drawn from @p seed.
-  void Hang(const io::TriangleMesh& mesh_Rig, const std::string& file, std::uint64_t seed) {
+  void Hang(const geometry::TriangleMesh& mesh_Rig, const std::string& file, std::uint64_t seed) {
     io::WriteMesh(dir_ / file, mesh_Rig);
     VirtualScene scene;
     scene.rig_path = "truth.yaml";

@@ -32,20 +32,20 @@ TEST(SyntheticSetTest, WritesALoadableSetWithGroundTruth) {
   ASSERT_EQ(summary.targets.size(), 2u);
   EXPECT_NE(FormatSummary(summary).find("target_001"), std::string::npos);
 
-  const io::TriangleMesh tmpl = io::ReadMesh(options.out_dir / "template.ply");
+  const geometry::TriangleMesh tmpl = io::ReadMesh(options.out_dir / "template.ply");
   const io::Annotations annotations =
       io::LoadAnnotations(options.out_dir / "template_annotations.yaml");
   EXPECT_NO_THROW(io::CheckAnnotationsFit(annotations, tmpl, "template.ply"));
   for (const char* name : {"target_000", "target_001"}) {
     const std::string base = name;
-    const io::TriangleMesh noisy = io::ReadMesh(options.out_dir / (base + ".ply"));
-    const io::TriangleMesh truth = io::ReadMesh(options.out_dir / (base + "_truth.ply"));
+    const geometry::TriangleMesh noisy = io::ReadMesh(options.out_dir / (base + ".ply"));
+    const geometry::TriangleMesh truth = io::ReadMesh(options.out_dir / (base + "_truth.ply"));
     EXPECT_EQ(noisy.F, tmpl.F);
     EXPECT_EQ(truth.F, tmpl.F);
     const double moved = (noisy.V - truth.V).colwise().norm().mean();
     EXPECT_GT(moved, 0.0005);  // E|N(0, 2 mm)| is 1.6 mm
     EXPECT_LT(moved, 0.004);
-    const io::PointCloud cloud = io::ReadCloud(options.out_dir / (base + "_cloud.ply"));
+    const geometry::PointCloud cloud = io::ReadCloud(options.out_dir / (base + "_cloud.ply"));
     EXPECT_GT(cloud.size(), 1000);
     EXPECT_TRUE(std::filesystem::exists(options.out_dir / (base + "_truth.yaml")));
   }

@@ -8,7 +8,7 @@
 
 namespace vb::test {
 
-io::TriangleMesh CapsuleUnion(const std::vector<Capsule>& capsules, double h) {
+geometry::TriangleMesh CapsuleUnion(const std::vector<Capsule>& capsules, double h) {
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   Eigen::Vector3d hi = -lo;
   for (const Capsule& c : capsules) {
@@ -27,7 +27,7 @@ io::TriangleMesh CapsuleUnion(const std::vector<Capsule>& capsules, double h) {
   return perception::MarchingTetrahedra(f, lo, hi, h);
 }
 
-io::TriangleMesh YShape(double h) {
+geometry::TriangleMesh YShape(double h) {
   std::vector<Capsule> arms;
   for (int k = 0; k < 3; ++k) {
     const double angle = 2.0 * M_PI * k / 3.0 + 0.3;

@@ -3,7 +3,7 @@
 #include <Eigen/Core>
 #include <vector>
 
-#include "io/triangle_mesh.h"
+#include "geometry/triangle_mesh.h"
 
 namespace vb::test {
 
@@ -13,9 +13,9 @@ struct Capsule {
   Eigen::Vector3d a, b;
   double r;
 };
-io::TriangleMesh CapsuleUnion(const std::vector<Capsule>& capsules, double h);
+geometry::TriangleMesh CapsuleUnion(const std::vector<Capsule>& capsules, double h);
 
 /// Three arms of length 1 and radius 0.12 meeting at the origin (a "Y"), as a closed mesh.
-io::TriangleMesh YShape(double h = 0.04);
+geometry::TriangleMesh YShape(double h = 0.04);
 
 }  // namespace vb::test

@@ -7,8 +7,8 @@
 
 namespace vb::test {
 
-io::TriangleMesh Box(double sx, double sy, double sz) {
-  io::TriangleMesh m;
+geometry::TriangleMesh Box(double sx, double sy, double sz) {
+  geometry::TriangleMesh m;
   m.V.resize(3, 8);
   for (int i = 0; i < 8; ++i)
     m.V.col(i) = Eigen::Vector3d((i & 1) * sx, ((i >> 1) & 1) * sy, ((i >> 2) & 1) * sz);
@@ -19,8 +19,8 @@ io::TriangleMesh Box(double sx, double sy, double sz) {
   return m;
 }
 
-io::TriangleMesh Tetrahedron() {
-  io::TriangleMesh m;
+geometry::TriangleMesh Tetrahedron() {
+  geometry::TriangleMesh m;
   m.V.resize(3, 4);
   m.V << 1, -1, -1, 1,  //
       1, -1, 1, -1,     //
@@ -32,7 +32,7 @@ io::TriangleMesh Tetrahedron() {
   return m;
 }
 
-io::TriangleMesh Sphere(double r, int subdivisions) {
+geometry::TriangleMesh Sphere(double r, int subdivisions) {
   std::vector<Eigen::Vector3d> v = {{1, 0, 0},  {-1, 0, 0}, {0, 1, 0},
                                     {0, -1, 0}, {0, 0, 1},  {0, 0, -1}};
   std::vector<std::array<int, 3>> f = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4},
@@ -56,7 +56,7 @@ io::TriangleMesh Sphere(double r, int subdivisions) {
     }
     f = std::move(next);
   }
-  io::TriangleMesh m;
+  geometry::TriangleMesh m;
   m.V.resize(3, static_cast<Eigen::Index>(v.size()));
   for (std::size_t i = 0; i < v.size(); ++i) m.V.col(static_cast<Eigen::Index>(i)) = r * v[i];
   m.F.resize(3, static_cast<Eigen::Index>(f.size()));

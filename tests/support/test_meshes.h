@@ -1,16 +1,16 @@
 #pragma once
 
-#include "io/triangle_mesh.h"
+#include "geometry/triangle_mesh.h"
 
 namespace vb::test {
 
 /// Axis-aligned box [0,sx] x [0,sy] x [0,sz], 8 vertices, 12 outward-oriented triangles.
-io::TriangleMesh Box(double sx = 1.0, double sy = 1.0, double sz = 1.0);
+geometry::TriangleMesh Box(double sx = 1.0, double sy = 1.0, double sz = 1.0);
 
 /// Regular tetrahedron, outward-oriented.
-io::TriangleMesh Tetrahedron();
+geometry::TriangleMesh Tetrahedron();
 
 /// Sphere of radius r: a subdivided octahedron projected outward (closed, oriented).
-io::TriangleMesh Sphere(double r, int subdivisions);
+geometry::TriangleMesh Sphere(double r, int subdivisions);
 
 }  // namespace vb::test

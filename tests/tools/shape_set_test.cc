@@ -9,8 +9,8 @@
 #include <ostream>
 
 #include "io/error.h"
-#include "io/mesh_measures.h"
-#include "io/mesh_topology.h"
+#include "geometry/mesh_measures.h"
+#include "geometry/mesh_topology.h"
 #include "morph/template_model.h"
 
 namespace vb::tools {
@@ -58,12 +58,12 @@ namespace {
 
 TEST_P(ShapeSetTest, TemplateIsClosedAndTargetsArePosedFarEnough) {
   const ShapeCase shape = BuildShapeCase(GetParam());
-  const io::TopologyReport topology = io::AnalyzeTopology(shape.template_mesh);
+  const geometry::TopologyReport topology = geometry::AnalyzeTopology(shape.template_mesh);
   EXPECT_TRUE(topology.is_closed_manifold()) << topology.Describe();
   const Eigen::Vector3d extent =
       shape.template_mesh.V.rowwise().maxCoeff() - shape.template_mesh.V.rowwise().minCoeff();
   // The wrap lies 0.14 % of the diagonal (about 3 mm) outside the model on every side.
-  EXPECT_NEAR(extent.maxCoeff(), 1.7 + 2 * 0.0014 * io::BoundingBoxDiagonal(shape.sources.front().V), 0.002);
+  EXPECT_NEAR(extent.maxCoeff(), 1.7 + 2 * 0.0014 * geometry::BoundingBoxDiagonal(shape.sources.front().V), 0.002);
   EXPECT_NO_THROW(morph::BuildTemplateModel(shape.template_mesh));
   ASSERT_EQ(shape.targets.size(), GetParam().targets.size());
   for (const ShapeTarget& target : shape.targets) {

@@ -13,7 +13,7 @@
 #include <numbers>
 
 #include "io/error.h"
-#include "io/mesh_measures.h"
+#include "geometry/mesh_measures.h"
 #include "morph/feature_association.h"
 #include "morph/point_index.h"
 
@@ -110,7 +110,7 @@ std::vector<ShapeSpec> DefaultShapeSpecs() {
   };
 }
 
-io::TriangleMesh LoadPosedModel(const std::filesystem::path& file, const ShapePose& pose) {
+geometry::TriangleMesh LoadPosedModel(const std::filesystem::path& file, const ShapePose& pose) {
   const std::string where = file.string();
   if (!std::filesystem::is_regular_file(file)) {
     throw InputError(where + ": no such file (is its Debian package installed?)");
@@ -208,7 +208,7 @@ io::TriangleMesh LoadPosedModel(const std::filesystem::path& file, const ShapePo
     }
   }
   if (faces.empty()) throw InputError(where + ": no triangles");
-  io::TriangleMesh out;
+  geometry::TriangleMesh out;
   out.V.resize(3, static_cast<Eigen::Index>(vertices.size()));
   for (std::size_t i = 0; i < vertices.size(); ++i) out.V.col(static_cast<Eigen::Index>(i)) = vertices[i];
   out.F.resize(3, static_cast<Eigen::Index>(faces.size()));
@@ -220,13 +220,13 @@ io::TriangleMesh LoadPosedModel(const std::filesystem::path& file, const ShapePo
 ShapeCase BuildShapeCase(const ShapeSpec& spec, const ShapeCaseOptions& options) {
   ShapeCase out;
   out.spec = spec;
-  io::TriangleMesh rest = LoadPosedModel(spec.file, spec.rest);
+  geometry::TriangleMesh rest = LoadPosedModel(spec.file, spec.rest);
   const Eigen::Vector3d lo = rest.V.rowwise().minCoeff(), hi = rest.V.rowwise().maxCoeff();
   const double extent = (hi - lo).maxCoeff();
   if (!(extent > 0)) throw InputError(spec.file.string() + ": the model has no extent");
   out.metres_per_unit = options.body_size_m / extent;
   const Eigen::Vector3d centre = 0.5 * (lo + hi);
-  auto to_metres = [&](io::TriangleMesh* mesh) {
+  auto to_metres = [&](geometry::TriangleMesh* mesh) {
     mesh->V = ((mesh->V.colwise() - centre) * out.metres_per_unit).eval();
   };
   to_metres(&rest);
@@ -234,7 +234,7 @@ ShapeCase BuildShapeCase(const ShapeSpec& spec, const ShapeCaseOptions& options)
   out.sources.push_back(rest);
   const std::vector<SurfaceAnchor> anchors = AnchorOnSurface(out.template_mesh.V, rest);
   for (const ShapePose& pose : spec.targets) {
-    io::TriangleMesh posed = LoadPosedModel(spec.file, pose);
+    geometry::TriangleMesh posed = LoadPosedModel(spec.file, pose);
     if (posed.F.cols() != rest.F.cols() || posed.V.cols() != rest.V.cols() || posed.F != rest.F) {
       throw InputError(spec.file.string() + ": pose " + pose.label +
                        " has other faces than the rest pose " + spec.rest.label);

@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "io/triangle_mesh.h"
+#include "geometry/triangle_mesh.h"
 #include "tools/shape_set/surface_wrap.h"
 
 namespace vb::tools {
@@ -39,7 +39,7 @@ std::vector<ShapeSpec> DefaultShapeSpecs();
 /// them). Skeletal poses: each node's channel interpolated at the time, linear blend skinning.
 /// @throws InputError naming the file when libassimp cannot read or validate it, an index is
 ///   out of range, the animation or time is not in it, or a keyframe is asked of a skeletal file.
-io::TriangleMesh LoadPosedModel(const std::filesystem::path& file, const ShapePose& pose);
+geometry::TriangleMesh LoadPosedModel(const std::filesystem::path& file, const ShapePose& pose);
 
 /// One target of a shape: the template's vertices carried into another pose.
 struct ShapeTarget {
@@ -51,12 +51,12 @@ struct ShapeTarget {
 /// A closed template and its posed targets with vertex correspondence.
 struct ShapeCase {
   ShapeSpec spec;
-  io::TriangleMesh template_mesh;  ///< closed, in metres, its largest extent body_size_m
+  geometry::TriangleMesh template_mesh;  ///< closed, in metres, its largest extent body_size_m
   std::vector<ShapeTarget> targets;
   double metres_per_unit = 1;  ///< the scale applied to the file's coordinates
   /// The model itself, as its rig poses it (scaled, open, unwelded): the rest pose, then
   /// one per target.
-  std::vector<io::TriangleMesh> sources;
+  std::vector<geometry::TriangleMesh> sources;
 };
 
 struct ShapeCaseOptions {

@@ -14,7 +14,7 @@
 #include <string>
 
 #include "io/error.h"
-#include "io/mesh_measures.h"
+#include "geometry/mesh_measures.h"
 
 namespace vb::tools {
 namespace {
@@ -26,7 +26,7 @@ using SurfaceMesh = CGAL::Surface_mesh<Point>;
 
 Point ToPoint(const Eigen::Vector3d& p) { return Point(p.x(), p.y(), p.z()); }
 
-bool Degenerate(const io::TriangleMesh& mesh, int f) {
+bool Degenerate(const geometry::TriangleMesh& mesh, int f) {
   const Eigen::Vector3d a = mesh.V.col(mesh.F(0, f));
   const Eigen::Vector3d b = mesh.V.col(mesh.F(1, f));
   const Eigen::Vector3d c = mesh.V.col(mesh.F(2, f));
@@ -36,7 +36,7 @@ bool Degenerate(const io::TriangleMesh& mesh, int f) {
 }
 
 // The triangle's own frame: first edge, across it in the plane, normal (columns).
-Eigen::Matrix3d TriangleFrame(const io::TriangleMesh& mesh, int f) {
+Eigen::Matrix3d TriangleFrame(const geometry::TriangleMesh& mesh, int f) {
   const Eigen::Vector3d a = mesh.V.col(mesh.F(0, f));
   const Eigen::Vector3d b = mesh.V.col(mesh.F(1, f));
   const Eigen::Vector3d c = mesh.V.col(mesh.F(2, f));
@@ -49,7 +49,7 @@ Eigen::Matrix3d TriangleFrame(const io::TriangleMesh& mesh, int f) {
 
 }  // namespace
 
-io::TriangleMesh WrapSurface(const io::TriangleMesh& soup, const WrapOptions& options) {
+geometry::TriangleMesh WrapSurface(const geometry::TriangleMesh& soup, const WrapOptions& options) {
   std::vector<Point> points;
   points.reserve(static_cast<std::size_t>(soup.num_vertices()));
   for (Eigen::Index i = 0; i < soup.V.cols(); ++i) points.push_back(ToPoint(soup.V.col(i)));
@@ -60,12 +60,12 @@ io::TriangleMesh WrapSurface(const io::TriangleMesh& soup, const WrapOptions& op
                      static_cast<std::size_t>(soup.F(2, f))});
   }
   if (faces.empty()) throw InputError("wrap: the surface has no non-degenerate triangle");
-  const double diagonal = io::BoundingBoxDiagonal(soup.V);
+  const double diagonal = geometry::BoundingBoxDiagonal(soup.V);
   SurfaceMesh wrap;
   CGAL::alpha_wrap_3(points, faces, options.alpha * diagonal, options.offset * diagonal, wrap);
   if (wrap.number_of_faces() == 0) throw InputError("wrap: CGAL's alpha wrap came out empty");
 
-  io::TriangleMesh out;
+  geometry::TriangleMesh out;
   out.V.resize(3, static_cast<Eigen::Index>(wrap.number_of_vertices()));
   for (SurfaceMesh::Vertex_index v : wrap.vertices()) {
     const Point& p = wrap.point(v);
@@ -82,12 +82,12 @@ io::TriangleMesh WrapSurface(const io::TriangleMesh& soup, const WrapOptions& op
     if (k != 3) throw InputError("wrap: CGAL's alpha wrap made a face with " + std::to_string(k) + " corners");
     ++f;
   }
-  out.N = io::VertexNormals(out);
+  out.N = geometry::VertexNormals(out);
   return out;
 }
 
 std::vector<SurfaceAnchor> AnchorOnSurface(const Eigen::Matrix3Xd& points,
-                                           const io::TriangleMesh& surface) {
+                                           const geometry::TriangleMesh& surface) {
   std::vector<Triangle> triangles;
   std::vector<int> face_of;
   for (int f = 0; f < surface.num_faces(); ++f) {
@@ -126,7 +126,7 @@ std::vector<SurfaceAnchor> AnchorOnSurface(const Eigen::Matrix3Xd& points,
 }
 
 Eigen::Matrix3Xd PlaceAnchors(const std::vector<SurfaceAnchor>& anchors,
-                              const io::TriangleMesh& posed) {
+                              const geometry::TriangleMesh& posed) {
   Eigen::Matrix3Xd out(3, static_cast<Eigen::Index>(anchors.size()));
   for (std::size_t i = 0; i < anchors.size(); ++i) {
     const SurfaceAnchor& anchor = anchors[i];

@@ -3,7 +3,7 @@
 #include <Eigen/Core>
 #include <vector>
 
-#include "io/triangle_mesh.h"
+#include "geometry/triangle_mesh.h"
 
 namespace vb::tools {
 
@@ -19,7 +19,8 @@ struct WrapOptions {
 /// components, self-intersecting): CGAL's 3D alpha wrapping.
 /// @param[in] soup  triangles; its normals are ignored.
 /// @throws InputError when the soup has no non-degenerate triangle or the wrap is empty.
-io::TriangleMesh WrapSurface(const io::TriangleMesh& soup, const WrapOptions& options = {});
+geometry::TriangleMesh WrapSurface(const geometry::TriangleMesh& soup,
+                                   const WrapOptions& options = {});
 
 /// Where a point sits relative to a triangle soup: its closest triangle, the closest point's
 /// barycentric coordinates in it, and the offset from that point in the triangle's own frame
@@ -37,13 +38,13 @@ struct SurfaceAnchor {
 /// Degenerate triangles are never chosen.
 /// @throws InputError when the surface has no non-degenerate triangle.
 std::vector<SurfaceAnchor> AnchorOnSurface(const Eigen::Matrix3Xd& points,
-                                           const io::TriangleMesh& surface);
+                                           const geometry::TriangleMesh& surface);
 
 /// The anchored points carried onto @p posed: the same triangles (same faces, new vertex
 /// positions), the same barycentric coordinates and the offset in the posed triangle's frame.
 /// @pre posed has the faces the anchors were made on. An anchored face that degenerates in
 ///   @p posed gives non-finite columns; the caller checks.
 Eigen::Matrix3Xd PlaceAnchors(const std::vector<SurfaceAnchor>& anchors,
-                              const io::TriangleMesh& posed);
+                              const geometry::TriangleMesh& posed);
 
 }  // namespace vb::tools

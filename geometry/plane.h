@@ -2,7 +2,7 @@
 
 #include <Eigen/Core>
 
-namespace vb::io {
+namespace vb::geometry {
 
 /// An oriented plane: the points x with normal.dot(x - point) == 0. The normal is unit length.
 struct Plane {
@@ -13,4 +13,4 @@ struct Plane {
   double SignedDistance(const Eigen::Vector3d& x) const { return normal.dot(x - point); }
 };
 
-}  // namespace vb::io
+}  // namespace vb::geometry

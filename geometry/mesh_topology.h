@@ -3,9 +3,9 @@
 #include <string>
 #include <vector>
 
-#include "io/triangle_mesh.h"
+#include "geometry/triangle_mesh.h"
 
-namespace vb::io {
+namespace vb::geometry {
 
 /// What a mesh's connectivity is, as counts; built by AnalyzeTopology.
 struct TopologyReport {
@@ -43,4 +43,4 @@ std::vector<std::vector<int>> FacesOfVertices(const TriangleMesh& mesh);
 /// @pre every index in mesh.F is in [0, #V).
 TopologyReport AnalyzeTopology(const TriangleMesh& mesh);
 
-}  // namespace vb::io
+}  // namespace vb::geometry

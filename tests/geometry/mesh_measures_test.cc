@@ -1,4 +1,4 @@
-#include "io/mesh_measures.h"
+#include "geometry/mesh_measures.h"
 
 #include <gtest/gtest.h>
 
@@ -6,7 +6,7 @@
 
 #include "tests/support/test_meshes.h"
 
-namespace vb::io {
+namespace vb::geometry {
 namespace {
 
 TEST(MeshMeasuresTest, BoxVolumeAreaAndDiagonal) {
@@ -70,4 +70,4 @@ TEST(MeshMeasuresTest, CurvatureSumsAreZeroOnAPlaneAndWhereNoEdgeIs) {
 }
 
 }  // namespace
-}  // namespace vb::io
+}  // namespace vb::geometry

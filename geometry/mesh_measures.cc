@@ -1,8 +1,8 @@
-#include "io/mesh_measures.h"
+#include "geometry/mesh_measures.h"
 
 #include <Eigen/Geometry>
 
-namespace vb::io {
+namespace vb::geometry {
 
 Eigen::Matrix3Xd VertexNormals(const TriangleMesh& mesh) {
   Eigen::Matrix3Xd N = Eigen::Matrix3Xd::Zero(3, mesh.num_vertices());
@@ -69,4 +69,4 @@ double BoundingBoxDiagonal(const Eigen::Ref<const Eigen::Matrix3Xd>& P) {
   return (P.rowwise().maxCoeff() - P.rowwise().minCoeff()).norm();
 }
 
-}  // namespace vb::io
+}  // namespace vb::geometry

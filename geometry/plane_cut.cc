@@ -1,4 +1,4 @@
-#include "io/plane_cut.h"
+#include "geometry/plane_cut.h"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -7,7 +7,7 @@
 
 #include "io/error.h"
 
-namespace vb::io {
+namespace vb::geometry {
 namespace {
 
 // The crossing of edge (k, k+1) of a face, as a surface point of that face.
@@ -190,4 +190,4 @@ std::vector<PartMeasure> MeasureParts(const TriangleMesh& mesh, std::span<const 
   return parts;
 }
 
-}  // namespace vb::io
+}  // namespace vb::geometry

@@ -2,9 +2,9 @@
 
 #include <Eigen/Core>
 
-#include "io/triangle_mesh.h"
+#include "geometry/triangle_mesh.h"
 
-namespace vb::io {
+namespace vb::geometry {
 
 /// Area-weighted unit vertex normals of @p mesh (3 by #V); a vertex no face uses gets zero.
 Eigen::Matrix3Xd VertexNormals(const TriangleMesh& mesh);
@@ -25,4 +25,4 @@ double SurfaceArea(const TriangleMesh& mesh);
 /// Length of the diagonal of the axis-aligned box around the 3 by N points @p P (0 if empty).
 double BoundingBoxDiagonal(const Eigen::Ref<const Eigen::Matrix3Xd>& P);
 
-}  // namespace vb::io
+}  // namespace vb::geometry

@@ -3,11 +3,11 @@
 #include <span>
 #include <vector>
 
-#include "io/plane.h"
-#include "io/surface_point.h"
-#include "io/triangle_mesh.h"
+#include "geometry/plane.h"
+#include "geometry/surface_point.h"
+#include "geometry/triangle_mesh.h"
 
-namespace vb::io {
+namespace vb::geometry {
 
 /// One connected piece of the intersection of a mesh with a plane. Each point lies on a mesh
 /// edge and is given in the face the loop enters next, so it moves with the mesh.
@@ -34,4 +34,4 @@ struct PartMeasure {
 /// volumes sum to the mesh volume whenever consecutive cuts do not cross inside the mesh.
 std::vector<PartMeasure> MeasureParts(const TriangleMesh& mesh, std::span<const Plane> cuts);
 
-}  // namespace vb::io
+}  // namespace vb::geometry

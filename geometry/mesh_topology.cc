@@ -1,4 +1,4 @@
-#include "io/mesh_topology.h"
+#include "geometry/mesh_topology.h"
 
 #include <algorithm>
 #include <array>
@@ -8,7 +8,7 @@
 
 #include "io/error.h"
 
-namespace vb::io {
+namespace vb::geometry {
 namespace {
 
 struct HalfEdge {
@@ -125,4 +125,4 @@ TopologyReport AnalyzeTopology(const TriangleMesh& mesh) {
   return r;
 }
 
-}  // namespace vb::io
+}  // namespace vb::geometry

@@ -2,7 +2,7 @@
 
 #include <Eigen/Core>
 
-namespace vb::io {
+namespace vb::geometry {
 
 /// A triangle mesh. Vertex order is meaningful: two meshes with the same faces correspond
 /// vertex by vertex, and every reader, writer and morph keeps that order.
@@ -30,4 +30,4 @@ struct PointCloud {
   bool has_normals() const { return normals.cols() > 0; }
 };
 
-}  // namespace vb::io
+}  // namespace vb::geometry

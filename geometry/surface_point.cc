@@ -1,8 +1,8 @@
-#include "io/surface_point.h"
+#include "geometry/surface_point.h"
 
 #include "io/error.h"
 
-namespace vb::io {
+namespace vb::geometry {
 
 Eigen::Vector3d Evaluate(const TriangleMesh& mesh, const SurfacePoint& p) {
   VB_DEMAND(p.face >= 0 && p.face < mesh.num_faces());
@@ -11,4 +11,4 @@ Eigen::Vector3d Evaluate(const TriangleMesh& mesh, const SurfacePoint& p) {
          p.barycentric[2] * mesh.V.col(mesh.F(2, p.face));
 }
 
-}  // namespace vb::io
+}  // namespace vb::geometry

@@ -1,13 +1,13 @@
-#include "io/plane_cut.h"
+#include "geometry/plane_cut.h"
 
 #include <gtest/gtest.h>
 
 #include <numbers>
 
-#include "io/mesh_measures.h"
+#include "geometry/mesh_measures.h"
 #include "tests/support/test_meshes.h"
 
-namespace vb::io {
+namespace vb::geometry {
 namespace {
 
 Plane MakePlane(Eigen::Vector3d point, Eigen::Vector3d normal) {
@@ -81,4 +81,4 @@ TEST(MeasurePartsTest, CapOfASphereMatchesTheClosedForm) {
 }
 
 }  // namespace
-}  // namespace vb::io
+}  // namespace vb::geometry

@@ -2,9 +2,9 @@
 
 #include <Eigen/Core>
 
-#include "io/triangle_mesh.h"
+#include "geometry/triangle_mesh.h"
 
-namespace vb::io {
+namespace vb::geometry {
 
 /// A point on a triangle mesh surface, as a face and barycentric coordinates in that face's
 /// vertex order. It follows any deformation of the mesh that keeps the faces.
@@ -16,4 +16,4 @@ struct SurfacePoint {
 /// The position of @p p on @p mesh. @pre p.face is a face of mesh.
 Eigen::Vector3d Evaluate(const TriangleMesh& mesh, const SurfacePoint& p);
 
-}  // namespace vb::io
+}  // namespace vb::geometry

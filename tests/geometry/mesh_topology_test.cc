@@ -1,10 +1,10 @@
-#include "io/mesh_topology.h"
+#include "geometry/mesh_topology.h"
 
 #include <gtest/gtest.h>
 
 #include "tests/support/test_meshes.h"
 
-namespace vb::io {
+namespace vb::geometry {
 namespace {
 
 TEST(MeshTopologyTest, ClosedShapesAreOrientedManifoldsOfGenusZero) {
@@ -77,4 +77,4 @@ TEST(MeshTopologyTest, CountsDegenerateFaces) {
 }
 
 }  // namespace
-}  // namespace vb::io
+}  // namespace vb::geometry
