@@ -29,7 +29,7 @@ const std::vector<std::pair<const char*, std::vector<const char*>>> kSectionKeys
     {"job",
      {"presence_min_points", "settle_sets", "max_border_readings", "min_confidence",
       "max_result_age_ms", "morph_deadline_ms", "new_carcass_change", "state_file", "dump_dir"}},
-    {"morph", {"template_up", "rig_up", "max_tilt_deg"}},
+    {"morph", {"template_up", "rig_up", "max_tilt_deg", "profile"}},
     {"lcm",
      {"url", "cut_lines_channel", "status_channel", "diagnostics_channel", "status_period_ms"}},
     {"can", {"interface", "send_deadline_ms", "answer_timeout_ms", "record"}},
@@ -158,6 +158,21 @@ std::string ReadSmallFile(const std::filesystem::path& path) {
 }
 
 }  // namespace
+
+morph::MorphOptions MorphOptionsFor(const DaemonConfig& config,
+                                    const morph::TemplateArtifact& artifact) {
+  morph::MorphOptions options = artifact.profile.options;
+  for (const auto& [name, value] : config.morph.profile) {
+    const morph::ProfileKey* key = morph::FindProfileKey(name);
+    VB_DEMAND(key != nullptr && key->overridable);  // LoadDaemonConfig checked them
+    key->set(&options, value);
+  }
+  if (const std::string problem = morph::CheckProfile(options); !problem.empty())
+    throw InputError(config.source.string() + ": morph.profile: with the template's values, " +
+                     problem);
+  options.coarse.upright = config.morph.upright;
+  return options;
+}
 
 std::vector<std::string> DaemonConfigKeys() {
   std::vector<std::string> keys;
@@ -351,6 +366,30 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
         upright.max_tilt_deg = r.InRange(n, morph_section.key("max_tilt_deg"), 1.0, 180.0);
       c.morph.upright = upright;
     });
+  }
+  if (const YAML::Node profile = morph_section["profile"]) {
+    const std::string where = morph_section.key("profile");
+    if (!profile.IsMap() && !profile.IsNull()) {
+      problems.Try([&] { r.Fail(profile, where, "expected a mapping (key: value)"); });
+    } else if (profile.IsMap()) {
+      for (const auto& entry : profile) {
+        problems.Try([&] {
+          const std::string name = r.Scalar<std::string>(entry.first, where + ".?");
+          const std::string dotted = where + "." + name;
+          const morph::ProfileKey* key = morph::FindProfileKey(name);
+          if (key == nullptr)
+            r.Fail(entry.first, dotted, "unknown key (`vbutcher template info` lists them)");
+          if (!key->overridable)
+            r.Fail(entry.first, dotted,
+                   "is the method's own, not a setting; the overridable keys are those "
+                   "`vbutcher template info` marks 'config'");
+          const double value = r.Scalar<double>(entry.second, dotted);
+          if (const std::string problem = morph::CheckProfileValue(*key, value); !problem.empty())
+            r.Fail(entry.second, dotted, problem);
+          c.morph.profile.emplace_back(name, value);
+        });
+      }
+    }
   }
 
   const Section lcm(r, &problems, root, "lcm");

@@ -3,10 +3,13 @@
 #include <Eigen/Geometry>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "io/lcm_publisher.h"
 #include "morph/coarse_alignment.h"
+#include "morph/morph_profile.h"
+#include "morph/template_artifact.h"
 #include "perception/calibration_target.h"
 #include "perception/fusion.h"
 #include "perception/rig_calibration.h"
@@ -65,6 +68,9 @@ struct MorphSection {
   /// Carcasses hang from the gambrel: when enabled, only placements of the template whose up
   /// direction (template frame) lies within max_tilt_deg of the rig's up are considered.
   morph::UprightPrior upright;
+  /// morph.profile: overrides of the template's tuned values, (key, value) in file order,
+  /// each an overridable morph::ProfileKey within its bounds.
+  std::vector<std::pair<std::string, double>> profile;
 };
 
 struct CanOptions {
@@ -129,6 +135,13 @@ struct DaemonConfig {
 ///   "file:line: key: problem" (a repeated key names both lines). YAML syntax, format and
 ///   version problems stop the reading at the first.
 DaemonConfig LoadDaemonConfig(const std::filesystem::path& path);
+
+/// What a job is morphed with: @p artifact's profile, then @p config's morph.profile
+/// overrides and its upright prior.
+/// @throws InputError naming the configuration file when the overrides and the template's
+/// values together cannot be morphed with (morph::CheckProfile).
+morph::MorphOptions MorphOptionsFor(const DaemonConfig& config,
+                                    const morph::TemplateArtifact& artifact);
 
 /// Every key the file may hold, sections' keys dotted ("capture.fps").
 std::vector<std::string> DaemonConfigKeys();

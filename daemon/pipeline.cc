@@ -129,7 +129,7 @@ Pipeline::Pipeline(const DaemonConfig& config, morph::TemplateArtifact artifact,
       numbers_(UsableStateFile(config.job.state_file, &start_warning_)) {
   if (!numbers_.warning().empty())
     start_warning_ += (start_warning_.empty() ? "" : "; ") + numbers_.warning();
-  morph_options_.coarse.upright = config_.morph.upright;
+  morph_options_ = MorphOptionsFor(config_, artifact_);
   version_ = std::string(Version()) + " (" + GitRevision() + ")";
   fusion_ = std::make_unique<perception::Fusion>(config_.rig, config_.fusion);
   slot_cloud_ = fusion_->MakeOutput();

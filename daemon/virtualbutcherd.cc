@@ -99,6 +99,7 @@ int main(int argc, char** argv) {
         vb::GitRevision(), config_path.c_str());
     const auto t0 = std::chrono::steady_clock::now();
     artifact = vb::morph::LoadTemplateArtifact(config.template_path);
+    (void)vb::daemon::MorphOptionsFor(config, artifact);  // the overrides fit the template
     const double load_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     Log(Priority::kInfo, "template %s v%d (%s) loaded in %.3f s; %zu cameras",

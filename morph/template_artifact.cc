@@ -1,5 +1,7 @@
 #include "morph/template_artifact.h"
 
+#include <algorithm>
+
 #include "io/archive.h"
 #include "io/error.h"
 
@@ -121,6 +123,16 @@ void SaveTemplateArtifact(const std::filesystem::path& path, const TemplateArtif
   w.Put("annotations.line_barycentric",
         Eigen::MatrixXd(Eigen::Map<const Eigen::MatrixXd>(
             barycentric.data(), 3, static_cast<Eigen::Index>(barycentric.size() / 3))));
+  // The profile, key by key, so a reader can name a bad one.
+  std::vector<std::string> keys;
+  Eigen::MatrixXd values(1, static_cast<Eigen::Index>(ProfileKeys().size()));
+  for (const ProfileKey& key : ProfileKeys()) {
+    values(0, static_cast<Eigen::Index>(keys.size())) = key.get(a.profile.options);
+    keys.emplace_back(key.name);
+  }
+  w.PutInts("profile.version", {MorphProfile::kVersion});
+  w.PutStrings("profile.keys", keys);
+  w.Put("profile.values", values);
   w.Save(path);
 }
 
@@ -222,6 +234,30 @@ TemplateArtifact LoadTemplateArtifact(const std::filesystem::path& path) {
     an.cuts.push_back(std::move(cut));
   }
   if (next != bary.cols()) r.Fail("annotations.line_barycentric", "too many points");
+
+  const std::vector<int> profile_version = r.IntList("profile.version");
+  if (profile_version.size() != 1 || profile_version[0] != MorphProfile::kVersion)
+    r.Fail("profile.version", "expected " + std::to_string(MorphProfile::kVersion) +
+                                  "; recompile the template (vbutcher template compile)");
+  const std::vector<std::string> keys = r.Strings("profile.keys");
+  const Eigen::MatrixXd values = r.Doubles("profile.values", 1);
+  if (static_cast<std::size_t>(values.cols()) != keys.size())
+    r.Fail("profile.values", "has " + std::to_string(values.cols()) + " values for " +
+                                 std::to_string(keys.size()) + " keys");
+  std::vector<std::string> seen;
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    const ProfileKey* key = FindProfileKey(keys[k]);
+    if (key == nullptr) r.Fail("profile.keys", "unknown key '" + keys[k] + "'");
+    if (std::find(seen.begin(), seen.end(), keys[k]) != seen.end())
+      r.Fail("profile.keys", "key '" + keys[k] + "' appears twice");
+    seen.push_back(keys[k]);
+    const double value = values(0, static_cast<Eigen::Index>(k));
+    if (const std::string problem = CheckProfileValue(*key, value); !problem.empty())
+      r.Fail("profile.values", keys[k] + ": " + problem);
+    key->set(&a.profile.options, value);
+  }
+  if (const std::string problem = CheckProfile(a.profile.options); !problem.empty())
+    r.Fail("profile.values", problem);
   return a;
 }
 

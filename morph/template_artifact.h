@@ -4,6 +4,7 @@
 #include <string>
 
 #include "io/annotations.h"
+#include "morph/morph_profile.h"
 #include "morph/template_model.h"
 
 namespace vb::morph {
@@ -12,11 +13,14 @@ namespace vb::morph {
 /// binary file (io::ArchiveWriter, kind "vbutcher-template", version kVersion). Made offline
 /// by `vbutcher template compile`, loaded by the daemon and `vbutcher morph --model`.
 struct TemplateArtifact {
-  static constexpr std::uint32_t kVersion = 1;
+  /// 2: the morph profile is stored.
+  static constexpr std::uint32_t kVersion = 2;
   std::string template_id;        ///< e.g. "synthetic_lamb_v1"; goes out on LCM
   int template_version = 1;       ///< bumped whenever the expert's annotations change
   TemplateModel model;            ///< mesh, skeleton, features, graph, weights
   io::Annotations annotations;    ///< the expert's cuts on model.mesh
+  /// The tuned values this template is morphed with (CompileTemplate: the code's defaults).
+  MorphProfile profile;
 };
 
 /// Builds the model of @p mesh and checks @p annotations fit it.

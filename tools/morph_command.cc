@@ -54,6 +54,10 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   io::Annotations annotations;
   if (!options.model_path.empty()) {
     morph::TemplateArtifact artifact = morph::LoadTemplateArtifact(options.model_path);
+    // The template's own tuned values; the upright prior is the command line's.
+    const morph::UprightPrior upright = morph_options.coarse.upright;
+    morph_options = artifact.profile.options;
+    morph_options.coarse.upright = upright;
     model = std::move(artifact.model);
     annotations = std::move(artifact.annotations);
   } else {
@@ -209,6 +213,17 @@ int RunTemplateInfo(const std::filesystem::path& path) {
   const double load_s = LoadSeconds(path, &artifact);
   Describe(artifact);
   std::printf("%s: checksums good, loaded in %.3f s\n", path.c_str(), load_s);
+  // The profile: "*" where the template's value is not the code's default; "config" where
+  // the daemon's configuration may override it (morph.profile.<key>).
+  std::printf("morph profile v%d (%zu keys):\n", morph::MorphProfile::kVersion,
+              morph::ProfileKeys().size());
+  const morph::MorphOptions defaults;
+  for (const morph::ProfileKey& key : morph::ProfileKeys()) {
+    const double value = key.get(artifact.profile.options);
+    std::printf("  %-46s %12.6g %-1s %-15s %-6s %s\n", key.name, value,
+                value != key.get(defaults) ? "*" : "", key.unit, key.overridable ? "config" : "",
+                key.what);
+  }
   return 0;
 }
 

@@ -85,6 +85,42 @@ TEST_F(DaemonConfigTest, ReadsTheUprightPriorAndRefusesHalfOfIt) {
   EXPECT_THAT(Error("morph: {upright: yes}\n"), HasSubstr("morph.upright: unknown key"));
 }
 
+TEST_F(DaemonConfigTest, ProfileOverridesOnlyTheOverridableKeysWithinTheirBounds) {
+  const auto path = dir_.Write(
+      "vbd.yaml", kHead + "morph: {profile: {dense.rounds: 4, check.unexplained_scale: 0.1}}\n");
+  const DaemonConfig c = LoadDaemonConfig(path);
+  ASSERT_EQ(c.morph.profile.size(), 2u);
+  morph::TemplateArtifact artifact;
+  artifact.profile.options.dense.rounds = 7;  // the template's own
+  artifact.profile.options.coarse.articulation.rounds = 9;
+  const morph::MorphOptions options = MorphOptionsFor(c, artifact);
+  EXPECT_EQ(options.dense.rounds, 4);
+  EXPECT_EQ(options.check.unexplained_scale, 0.1);
+  EXPECT_EQ(options.coarse.articulation.rounds, 9);  // not overridden: the template's
+
+  EXPECT_THAT(Error("morph: {profile: {dense.association.lambda: 5}}\n"),
+              HasSubstr("vbd.yaml:5: morph.profile.dense.association.lambda: is the method's own"));
+  EXPECT_THAT(Error("morph: {profile: {dense.round: 4}}\n"),
+              HasSubstr("vbd.yaml:5: morph.profile.dense.round: unknown key"));
+  EXPECT_THAT(Error("morph: {profile: {dense.rounds: 2.5}}\n"),
+              HasSubstr("morph.profile.dense.rounds: 2.5 is not a whole number (rounds)"));
+  EXPECT_THAT(Error("morph: {profile: {dense.rounds: 0}}\n"),
+              HasSubstr("morph.profile.dense.rounds: 0 is outside [1, 50] (rounds)"));
+  EXPECT_THAT(Error("morph: {profile: [dense.rounds]}\n"),
+              HasSubstr("morph.profile: expected a mapping"));
+  // Each value in bounds, but together with the template's not: named at start.
+  const auto crossed = dir_.Write(
+      "crossed.yaml", kHead + "morph: {profile: {check.stretch_start: 0.5, check.stretch_end: 0.4}}\n");
+  const DaemonConfig bad = LoadDaemonConfig(crossed);
+  try {
+    (void)MorphOptionsFor(bad, artifact);
+    ADD_FAILURE() << "crossed stretch limits accepted";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("crossed.yaml: morph.profile: with the template's values, "
+                                    "check.stretch_start must be below check.stretch_end"));
+  }
+}
+
 TEST_F(DaemonConfigTest, ReadsTheSawLinkAndJobNumberingKeys) {
   const auto path = dir_.Write(
       "vbd.yaml", kHead +

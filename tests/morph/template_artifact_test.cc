@@ -3,6 +3,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <fstream>
 #include <functional>
 #include <limits>
@@ -118,6 +120,60 @@ TEST_F(TemplateArtifactTest, RefusesAWellFormedFileWithNonFiniteFeaturesOrSkelet
               HasSubstr("section 'mesh.N': has a normal that is neither unit length nor zero"));
   EXPECT_EQ(error([](TemplateArtifact* a) { a->model.mesh.N.col(7).setZero(); }), "(accepted)");
   EXPECT_EQ(error([](TemplateArtifact*) {}), "(accepted)");
+}
+
+TEST_F(TemplateArtifactTest, KeepsItsMorphProfileAndRefusesOneOutOfBounds) {
+  test::TempDir dir;
+  TemplateArtifact artifact;
+  artifact.template_id = "lamb";
+  artifact.model = *model_;
+  artifact.annotations = carcass_->annotations;
+  artifact.profile.options.dense.rounds = 3;
+  artifact.profile.options.coarse.articulation.keep_fraction = 0.7;
+  SaveTemplateArtifact(dir / "lamb.vbt", artifact);
+  const TemplateArtifact back = LoadTemplateArtifact(dir / "lamb.vbt");
+  for (const ProfileKey& key : ProfileKeys())
+    EXPECT_EQ(key.get(back.profile.options), key.get(artifact.profile.options)) << key.name;
+  EXPECT_EQ(back.profile.options.dense.rounds, 3);
+
+  auto error = [&](const std::function<void(MorphOptions*)>& spoil) {
+    TemplateArtifact spoilt = artifact;
+    spoil(&spoilt.profile.options);
+    SaveTemplateArtifact(dir / "spoilt.vbt", spoilt);
+    try {
+      LoadTemplateArtifact(dir / "spoilt.vbt");
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(accepted)");
+  };
+  EXPECT_THAT(error([](MorphOptions* o) { o->coarse.articulation.keep_fraction = 1.5; }),
+              HasSubstr("spoilt.vbt: section 'profile.values': "
+                        "coarse.articulation.keep_fraction: 1.5 is outside [0.1, 1] (fraction)"));
+  EXPECT_THAT(error([](MorphOptions* o) { o->dense.association.lambda = std::nan(""); }),
+              HasSubstr("dense.association.lambda: is not a finite number"));
+  EXPECT_THAT(error([](MorphOptions* o) { o->dense.surface_neighbours = 100; }),
+              HasSubstr("dense.surface_neighbours must not exceed dense.max_surface_neighbours"));
+}
+
+TEST(MorphProfileTest, EveryDefaultLiesInItsBoundsAndEveryKeyIsOneMember) {
+  const MorphOptions defaults;
+  EXPECT_EQ(CheckProfile(defaults), "");
+  std::vector<std::string> names;
+  for (const ProfileKey& key : ProfileKeys()) {
+    EXPECT_EQ(CheckProfileValue(key, key.get(defaults)), "") << key.name;
+    EXPECT_EQ(FindProfileKey(key.name), &key);
+    names.emplace_back(key.name);
+    // Setting one key changes that value and no other key's.
+    MorphOptions changed;
+    key.set(&changed, key.max);
+    for (const ProfileKey& other : ProfileKeys())
+      EXPECT_EQ(other.get(changed), &other == &key ? key.max : other.get(defaults))
+          << key.name << " moved " << other.name;
+  }
+  std::sort(names.begin(), names.end());
+  EXPECT_EQ(std::adjacent_find(names.begin(), names.end()), names.end());
+  EXPECT_EQ(FindProfileKey("dense.nosuch"), nullptr);
 }
 
 }  // namespace

@@ -114,6 +114,8 @@ check "morph refuses a missing target" 2 "absent.ply" \
 check "template compile writes a model" 0 "loads in" \
   "$vbutcher" template compile --template "$work/set/template.ply" --annotations "$work/set/template_annotations.yaml" -o "$work/t.vbt"
 check "template info verifies it" 0 "checksums good" "$vbutcher" template info "$work/t.vbt"
+check "template info lists the stored morph profile" 0 "coarse.articulation.target_keep_fraction" \
+  "$vbutcher" template info "$work/t.vbt"
 check "morph --model transfers the stored cuts" 0 "part shoulder" \
   "$vbutcher" morph --model "$work/t.vbt" --target "$work/set/target_001_cloud.ply" --out "$work/g.ply" --stage full --cuts "$work/g.json"
 head -c 2000 "$work/t.vbt" >"$work/cut.vbt"

@@ -1,0 +1,149 @@
+#include "morph/morph_profile.h"
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+
+namespace vb::morph {
+namespace {
+
+// A key for the MorphOptions member at @p path (ints and doubles).
+#define VB_PROFILE_KEY(path, unit, lo, hi, overridable, what)                                \
+  ProfileKey {                                                                               \
+    #path, unit, lo, hi, std::is_integral_v<decltype(MorphOptions{}.path)>, overridable,     \
+        what, [](const MorphOptions& o) { return static_cast<double>(o.path); },             \
+        [](MorphOptions* o, double v) { o->path = static_cast<decltype(o->path)>(v); }       \
+  }
+
+constexpr const char* kSize = "template sizes";
+constexpr const char* kFraction = "fraction";
+constexpr const char* kCount = "count";
+constexpr const char* kRounds = "rounds";
+constexpr const char* kWeight = "weight";
+constexpr const char* kNoise = "noise / size";
+
+const std::array kKeys = {
+    // Coarse stage: skeletons, placements, posture fit.
+    VB_PROFILE_KEY(coarse.skeleton.voxel, kSize, 0.001, 0.1, false, "target skeleton: downsampling cell"),
+    VB_PROFILE_KEY(coarse.skeleton.neighbours, kCount, 3, 64, false, "target skeleton: k of the neighbour graph"),
+    VB_PROFILE_KEY(coarse.skeleton.band, kSize, 0.001, 0.2, false, "target skeleton: width of a geodesic level set"),
+    VB_PROFILE_KEY(coarse.features.min_branch_length, kSize, 0.0, 0.5, false, "target skeleton: shorter branches are spurs"),
+    VB_PROFILE_KEY(coarse.features.junction_merge_distance, kSize, 0.0, 0.5, false, "target skeleton: junctions this close merge"),
+    VB_PROFILE_KEY(coarse.verification_samples, kCount, 50, 10000, false, "samples a side checking a candidate placement"),
+    VB_PROFILE_KEY(coarse.refine_candidates, kCount, 0, 64, false, "placements refined by closest-point fitting"),
+    VB_PROFILE_KEY(coarse.refine_iterations, kRounds, 0, 100, false, "closest-point rounds per refined placement"),
+    VB_PROFILE_KEY(coarse.repair_radius, kSize, 0.0, 1.0, false, "feature pairs re-made within this distance"),
+    VB_PROFILE_KEY(coarse.distinct_angle_deg, "degrees", 1.0, 180.0, false, "placements turned further apart are distinct"),
+    VB_PROFILE_KEY(coarse.articulated_candidates, kCount, 0, 24, true, "distinct placements given the posture fit before the choice"),
+    VB_PROFILE_KEY(coarse.choice_rounds, kRounds, 0, 50, true, "posture-fit rounds per placement before the choice"),
+    VB_PROFILE_KEY(coarse.articulation.rounds, kRounds, 0, 50, true, "posture-fit rounds of the chosen placement"),
+    VB_PROFILE_KEY(coarse.articulation.template_samples, kCount, 50, 20000, false, "posture fit: template samples paired"),
+    VB_PROFILE_KEY(coarse.articulation.target_samples, kCount, 50, 20000, false, "posture fit: target samples paired"),
+    VB_PROFILE_KEY(coarse.articulation.keep_fraction, kFraction, 0.1, 1.0, false, "posture fit: template pairs kept (nearest)"),
+    VB_PROFILE_KEY(coarse.articulation.target_keep_fraction, kFraction, 0.1, 1.0, false, "posture fit: target pairs kept (nearest)"),
+    VB_PROFILE_KEY(coarse.articulation.stiffness_start, kWeight, 1e-4, 1e4, false, "posture fit: regularisers' first multiplier"),
+    VB_PROFILE_KEY(coarse.articulation.stiffness_decay, kFraction, 0.01, 1.0, false, "posture fit: multiplier's decay a round"),
+    VB_PROFILE_KEY(coarse.articulation.min_stiffness, kWeight, 1e-5, 1e4, false, "posture fit: multiplier's floor"),
+    VB_PROFILE_KEY(coarse.articulation.terminal_radius, kSize, 0.0, 1.0, false, "posture fit: limb ends paired within"),
+    VB_PROFILE_KEY(coarse.articulation.terminal_weight, kWeight, 0.0, 1e4, false, "posture fit: limb-end pull (0: off)"),
+    VB_PROFILE_KEY(coarse.articulation.deformation.w_data, kWeight, 0.0, 1e6, false, "posture fit: data weight per node"),
+    VB_PROFILE_KEY(coarse.articulation.deformation.w_rot, kWeight, 0.0, 1e6, false, "posture fit: E_rot weight"),
+    VB_PROFILE_KEY(coarse.articulation.deformation.w_reg, kWeight, 0.0, 1e6, false, "posture fit: E_reg weight"),
+    VB_PROFILE_KEY(coarse.articulation.deformation.w_rig, kWeight, 0.0, 1e6, false, "posture fit: E_rig weight"),
+    VB_PROFILE_KEY(coarse.articulation.deformation.max_iterations, kCount, 1, 1000, false, "posture fit: solver iterations a round"),
+    // Dense stage.
+    VB_PROFILE_KEY(dense.num_samples, kCount, 100, 100000, true, "template vertices associated a round"),
+    VB_PROFILE_KEY(dense.reverse_samples, kCount, 0, 100000, true, "target points associated back a round"),
+    VB_PROFILE_KEY(dense.rounds, kRounds, 1, 50, true, "association, filtering and deformation rounds"),
+    VB_PROFILE_KEY(dense.stiffness_decay, kFraction, 0.01, 1.0, false, "regularisers' multiplier each round"),
+    VB_PROFILE_KEY(dense.normal_neighbours, kCount, 3, 500, false, "neighbours of a cloud's normals"),
+    VB_PROFILE_KEY(dense.max_normal_passes, kCount, 1, 64, false, "widening passes of a noisy cloud's normals"),
+    VB_PROFILE_KEY(dense.surface_neighbours, kCount, 1, 500, false, "points a plane point averages at surface_noise"),
+    VB_PROFILE_KEY(dense.max_surface_neighbours, kCount, 1, 2000, false, "points a plane point averages at most"),
+    VB_PROFILE_KEY(dense.surface_noise, kNoise, 1e-5, 0.1, false, "noise up to which surface_neighbours suffice"),
+    VB_PROFILE_KEY(dense.surface_radius, kSize, 0.001, 0.3, false, "plane points average no farther"),
+    VB_PROFILE_KEY(dense.noise_samples, kCount, 10, 100000, false, "points the noise is read at"),
+    VB_PROFILE_KEY(dense.noise_neighbours, kCount, 12, 500, false, "neighbours of a noise reading"),
+    VB_PROFILE_KEY(dense.noise_radius, kSize, 0.001, 0.3, false, "reach of a noise reading"),
+    VB_PROFILE_KEY(dense.noise_reference, kNoise, 1e-5, 0.1, false, "noise at which the data weight halves"),
+    VB_PROFILE_KEY(dense.association.candidates, kCount, 1, 200, false, "eq. 11: target points searched"),
+    VB_PROFILE_KEY(dense.association.lambda, "weight / size", 0.0, 1e4, false, "eq. 11: lambda"),
+    VB_PROFILE_KEY(dense.association.max_distance, kSize, 0.0, 1.0, false, "eq. 11: longer pairs dropped"),
+    VB_PROFILE_KEY(dense.association.min_normal_cosine, "cosine", -1.0, 1.0, false, "eq. 11: pairs whose normals disagree more dropped"),
+    VB_PROFILE_KEY(dense.filter.neighbours, kCount, 3, 64, false, "eq. 12: k of the rigidity graph"),
+    VB_PROFILE_KEY(dense.filter.min_residual, "residual", 0.0, 100.0, false, "eq. 12: residuals never trimmed below"),
+    VB_PROFILE_KEY(dense.filter.max_trimmed_fraction, kFraction, 0.0, 1.0, false, "eq. 12: trimmed at most"),
+    VB_PROFILE_KEY(dense.deformation.w_data, kWeight, 0.0, 1e6, false, "eq. 13: w_plane per node"),
+    VB_PROFILE_KEY(dense.deformation.w_rot, kWeight, 0.0, 1e6, false, "eq. 13: w_rot"),
+    VB_PROFILE_KEY(dense.deformation.w_reg, kWeight, 0.0, 1e6, false, "eq. 13: w_reg"),
+    VB_PROFILE_KEY(dense.deformation.w_rig, kWeight, 0.0, 1e6, false, "eq. 13: w_rig"),
+    VB_PROFILE_KEY(dense.deformation.max_iterations, kCount, 1, 1000, false, "solver iterations a round"),
+    // Whole-morph check.
+    VB_PROFILE_KEY(check.explained_distance, kSize, 0.0, 0.5, true, "target points farther are unexplained (plus noise)"),
+    VB_PROFILE_KEY(check.noise_allowance, "noise levels", 0.0, 20.0, false, "noise added to explained_distance"),
+    VB_PROFILE_KEY(check.ambiguity_start, kFraction, 0.0, 1.0, true, "confidence falls from this ambiguity"),
+    VB_PROFILE_KEY(check.unexplained_scale, kFraction, 1e-4, 1.0, true, "confidence halves at this unexplained share"),
+    VB_PROFILE_KEY(check.stretch_start, "log stretch", 0.0, 5.0, true, "confidence falls from this stretch"),
+    VB_PROFILE_KEY(check.stretch_end, "log stretch", 0.0, 5.0, true, "confidence reaches 0 at this stretch"),
+    // Cut transfer and parts.
+    VB_PROFILE_KEY(cuts.support_radius, kSize, 0.0, 0.5, false, "a line point is seen with target points this close"),
+    VB_PROFILE_KEY(cuts.surface_neighbours, kCount, 1, 500, false, "target points placing a line point"),
+    VB_PROFILE_KEY(cuts.fit_scale, kSize, 1e-6, 1.0, false, "line plane-fit RMS halving the confidence"),
+    VB_PROFILE_KEY(cuts.gap_scale, kSize, 1e-6, 1.0, false, "morph-to-target gap halving the confidence"),
+    VB_PROFILE_KEY(cuts.side_band, kSize, 1e-4, 0.5, false, "band telling the cut's sides apart"),
+    VB_PROFILE_KEY(cuts.normal_band, kSize, 0.0, 0.5, false, "band whose normals turn the plane (0: off)"),
+    VB_PROFILE_KEY(cuts.normal_max_lean, "cosine", 1e-3, 1.0, false, "band normals leaning more are left out"),
+    VB_PROFILE_KEY(cuts.min_band_vertices, kCount, 1, 100000, false, "band vertices needed for the turn"),
+    VB_PROFILE_KEY(cuts.slide_band, kSize, 0.0, 0.5, false, "band registered to place the plane (0: off)"),
+    VB_PROFILE_KEY(cuts.slide_band_noise, kNoise, 1e-5, 0.1, false, "noise past which the band widens"),
+    VB_PROFILE_KEY(cuts.slide_margin, kSize, 0.0, 0.5, false, "template band margin"),
+    VB_PROFILE_KEY(cuts.slide_stretch_sigma, kFraction, 1e-4, 10.0, false, "band stretch prior"),
+    VB_PROFILE_KEY(cuts.slide_tilt_sigma, "radians", 1e-4, 3.2, false, "band tilt prior"),
+    VB_PROFILE_KEY(cuts.slide_sigma, kSize, 1e-6, 0.5, false, "prior of the morph's slide at a cut"),
+    VB_PROFILE_KEY(cuts.slide_correlation_length, kSize, 0.0, 10.0, false, "cuts' slides correlate over"),
+    VB_PROFILE_KEY(cuts.slide_model_error, kSize, 0.0, 0.5, false, "a band reading's floor error"),
+    VB_PROFILE_KEY(cuts.slide_plane_neighbours, kCount, 1, 500, false, "points a band plane point averages"),
+    VB_PROFILE_KEY(cuts.slide_plane_radius, kSize, 1e-4, 0.5, false, "reach of a band plane point"),
+    VB_PROFILE_KEY(cuts.max_slide_plane_neighbours, kCount, 1, 2000, false, "points a band plane point averages at most"),
+    VB_PROFILE_KEY(parts.max_offset, kSize, 1e-4, 0.5, false, "target points farther are not of the part"),
+    VB_PROFILE_KEY(parts.min_points, kCount, 1, 1000000, false, "target points a part's girth needs"),
+};
+
+#undef VB_PROFILE_KEY
+
+}  // namespace
+
+std::span<const ProfileKey> ProfileKeys() { return kKeys; }
+
+const ProfileKey* FindProfileKey(std::string_view name) {
+  for (const ProfileKey& key : kKeys)
+    if (name == key.name) return &key;
+  return nullptr;
+}
+
+std::string CheckProfileValue(const ProfileKey& key, double value) {
+  char text[160];
+  if (!std::isfinite(value)) return "is not a finite number";
+  if (value < key.min || value > key.max) {
+    std::snprintf(text, sizeof text, "%g is outside [%g, %g] (%s)", value, key.min, key.max,
+                  key.unit);
+    return text;
+  }
+  if (key.integer && value != std::floor(value)) {
+    std::snprintf(text, sizeof text, "%g is not a whole number (%s)", value, key.unit);
+    return text;
+  }
+  return {};
+}
+
+std::string CheckProfile(const MorphOptions& options) {
+  if (!(options.check.stretch_start < options.check.stretch_end))
+    return "check.stretch_start must be below check.stretch_end";
+  if (options.dense.surface_neighbours > options.dense.max_surface_neighbours)
+    return "dense.surface_neighbours must not exceed dense.max_surface_neighbours";
+  if (options.cuts.slide_plane_neighbours > options.cuts.max_slide_plane_neighbours)
+    return "cuts.slide_plane_neighbours must not exceed cuts.max_slide_plane_neighbours";
+  return {};
+}
+
+}  // namespace vb::morph
