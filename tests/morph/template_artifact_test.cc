@@ -22,15 +22,36 @@ namespace {
 
 using ::testing::HasSubstr;
 
-class TemplateArtifactTest : public test::LambTemplateTest {};
+class TemplateArtifactTest : public test::LambTemplateTest {
+ protected:
+  // The lamb's model and annotations as an artifact, with the code's default profile.
+  TemplateArtifact Lamb() const {
+    TemplateArtifact artifact;
+    artifact.template_id = "lamb";
+    artifact.model = *model_;
+    artifact.annotations = carcass_->annotations;
+    return artifact;
+  }
+  // Saves @p artifact to @p path and loads it back: the loader's message, or "(accepted)".
+  static std::string ErrorOnReload(const TemplateArtifact& artifact,
+                                   const std::filesystem::path& path) {
+    SaveTemplateArtifact(path, artifact);
+    return LoadError(path);
+  }
+  static std::string LoadError(const std::filesystem::path& path) {
+    try {
+      LoadTemplateArtifact(path);
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "(accepted)";
+  }
+};
 
 TEST_F(TemplateArtifactTest, MorphFromTheLoadedArtifactEqualsMorphFromTheBuiltModel) {
   test::TempDir dir;
-  TemplateArtifact artifact;
-  artifact.template_id = "lamb";
+  TemplateArtifact artifact = Lamb();
   artifact.template_version = 3;
-  artifact.model = *model_;
-  artifact.annotations = carcass_->annotations;
   SaveTemplateArtifact(dir / "lamb.vbt", artifact);
   const TemplateArtifact back = LoadTemplateArtifact(dir / "lamb.vbt");
   EXPECT_EQ(back.template_id, "lamb");
@@ -64,24 +85,12 @@ TEST_F(TemplateArtifactTest, RefusesAnnotationsForAnotherMesh) {
 
 TEST_F(TemplateArtifactTest, RefusesCorruptTruncatedAndForeignFiles) {
   test::TempDir dir;
-  TemplateArtifact artifact;
-  artifact.template_id = "lamb";
-  artifact.model = *model_;
-  artifact.annotations = carcass_->annotations;
-  SaveTemplateArtifact(dir / "lamb.vbt", artifact);
+  SaveTemplateArtifact(dir / "lamb.vbt", Lamb());
   std::ifstream in(dir / "lamb.vbt", std::ios::binary);
   std::stringstream buffer;
   buffer << in.rdbuf();
   const std::string good = buffer.str();
-  auto error = [&](const std::string& bytes) {
-    const auto p = dir.Write("bad.vbt", bytes);
-    try {
-      LoadTemplateArtifact(p);
-    } catch (const InputError& e) {
-      return std::string(e.what());
-    }
-    return std::string("(accepted)");
-  };
+  auto error = [&](const std::string& bytes) { return LoadError(dir.Write("bad.vbt", bytes)); };
   EXPECT_THAT(error(good.substr(0, good.size() - 100)), HasSubstr("checksum mismatch"));
   std::string flipped = good;
   flipped[good.size() / 3] ^= 1;
@@ -96,18 +105,9 @@ TEST_F(TemplateArtifactTest, RefusesAWellFormedFileWithNonFiniteFeaturesOrSkelet
   // morph would fail on the line although `template info` and --check-config passed.
   test::TempDir dir;
   auto error = [&](const std::function<void(TemplateArtifact*)>& spoil) {
-    TemplateArtifact artifact;
-    artifact.template_id = "lamb";
-    artifact.model = *model_;
-    artifact.annotations = carcass_->annotations;
+    TemplateArtifact artifact = Lamb();
     spoil(&artifact);
-    SaveTemplateArtifact(dir / "spoilt.vbt", artifact);
-    try {
-      LoadTemplateArtifact(dir / "spoilt.vbt");
-    } catch (const InputError& e) {
-      return std::string(e.what());
-    }
-    return std::string("(accepted)");
+    return ErrorOnReload(artifact, dir / "spoilt.vbt");
   };
   const double nan = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THAT(error([&](TemplateArtifact* a) { a->model.features.terminals(1, 0) = nan; }),
@@ -124,10 +124,7 @@ TEST_F(TemplateArtifactTest, RefusesAWellFormedFileWithNonFiniteFeaturesOrSkelet
 
 TEST_F(TemplateArtifactTest, KeepsItsMorphProfileAndRefusesOneOutOfBounds) {
   test::TempDir dir;
-  TemplateArtifact artifact;
-  artifact.template_id = "lamb";
-  artifact.model = *model_;
-  artifact.annotations = carcass_->annotations;
+  TemplateArtifact artifact = Lamb();
   artifact.profile.options.dense.rounds = 3;
   artifact.profile.options.coarse.articulation.keep_fraction = 0.7;
   SaveTemplateArtifact(dir / "lamb.vbt", artifact);
@@ -139,13 +136,7 @@ TEST_F(TemplateArtifactTest, KeepsItsMorphProfileAndRefusesOneOutOfBounds) {
   auto error = [&](const std::function<void(MorphOptions*)>& spoil) {
     TemplateArtifact spoilt = artifact;
     spoil(&spoilt.profile.options);
-    SaveTemplateArtifact(dir / "spoilt.vbt", spoilt);
-    try {
-      LoadTemplateArtifact(dir / "spoilt.vbt");
-    } catch (const InputError& e) {
-      return std::string(e.what());
-    }
-    return std::string("(accepted)");
+    return ErrorOnReload(spoilt, dir / "spoilt.vbt");
   };
   EXPECT_THAT(error([](MorphOptions* o) { o->coarse.articulation.keep_fraction = 1.5; }),
               HasSubstr("spoilt.vbt: section 'profile.values': "
