@@ -254,6 +254,8 @@ std::vector<BenchCase> BuildCases(const ShapeBenchOptions& options, bool* any_fa
     if (options.max_pairs > 0 && static_cast<int>(c.targets.size()) > options.max_pairs) {
       c.targets.resize(static_cast<std::size_t>(options.max_pairs));
       c.scanned.resize(static_cast<std::size_t>(options.max_pairs));
+      // The rest pose's label, then one per target kept (the lambs have none).
+      if (!c.source_labels.empty()) c.source_labels.resize(c.targets.size() + 1);
     }
   }
   return cases;

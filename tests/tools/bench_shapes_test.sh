@@ -8,11 +8,12 @@ vbutcher=$1
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 "$vbutcher" bench shapes --shapes sydney,spiderblob,lamb --max-pairs 1 --lamb-pairs 1 \
-  --sigmas-mm 0,16 --variants clean,shadow --csv "$work/shapes.csv" > "$work/out.txt" 2> "$work/progress.txt"
+  --sigmas-mm 0,16 --variants clean,shadow --csv "$work/shapes.csv" --export "$work/ply" \
+  > "$work/out.txt" 2> "$work/progress.txt"
 grep -q '^| lamb | lamb | shadow | 16 |' "$work/out.txt" || { echo "FAIL: no table row"; cat "$work/out.txt"; exit 1; }
 grep -q '^\[12/12 ' "$work/progress.txt" || {
   echo "FAIL: no progress lines"; cat "$work/progress.txt"; exit 1; }
-/usr/bin/python3 - "$work/shapes.csv" "$work/shapes.png" "$work/shapes_examples" <<'PY'
+/usr/bin/python3 - "$work/shapes.csv" "$work/shapes.png" "$work/shapes_examples" "$work/ply" <<'PY'
 import csv, sys
 from pathlib import Path
 rows = list(csv.DictReader(open(sys.argv[1])))
@@ -42,6 +43,18 @@ lamb = float(by[("lamb", "0", "clean", "full")]["mean_err_rel"])
 for shape in ("sydney", "spiderblob", "lamb"):
     for part in ("target", "truth", "coarse", "full"):
         if not (Path(sys.argv[3]) / f"{shape}_{part}.xyz").stat().st_size: fail.append(f"empty {shape}_{part}.xyz")
+# The export: per third-party shape its template, the rest and the one kept pose of its
+# source, and the posed template of the pair; the lamb its template and pair. Each a PLY
+# whose header counts the vertices it holds.
+exported = sorted(p.name for p in Path(sys.argv[4]).iterdir())
+for shape in ("sydney", "spiderblob"):
+    mine = [n for n in exported if n.startswith(shape + "_")]
+    if len(mine) != 4 or f"{shape}_template.ply" not in mine:
+        fail.append(f"{shape}: exported {mine}, want the template, 2 sources and 1 pair")
+if len([n for n in exported if n.startswith("lamb_")]) != 2: fail.append(f"lamb: exported {exported}")
+for name in exported:
+    head = (Path(sys.argv[4]) / name).read_bytes()[:400]
+    if not head.startswith(b"ply") or b"element vertex " not in head: fail.append(f"{name}: not a PLY")
 import matplotlib.image
 img = matplotlib.image.imread(sys.argv[2])
 if img.shape[1] < 800 or img.shape[0] < 600: fail.append(f"picture is {img.shape}")
