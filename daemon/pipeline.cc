@@ -645,7 +645,7 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
           "stretch %.2f)",
           result.seconds, result.coarse.total_seconds, result.dense.total_seconds,
           result.cuts_seconds, outcome.send_s, outcome.answer_s, report.latency_s,
-          1000 * result.dense.noise * artifact_.model.size, result.check.confidence,
+          1000 * result.dense.noise_m, result.check.confidence,
           result.check.ambiguity, result.check.unexplained, result.check.stretch);
       text += numbers;
       if (!result.check.concern.empty()) text += ": " + result.check.concern;

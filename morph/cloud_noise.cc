@@ -4,6 +4,7 @@
 #include <Eigen/QR>
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <vector>
 
 #include "io/error.h"
@@ -43,6 +44,7 @@ namespace {
 struct NoiseReading {
   double sigma = 0.0;
   double reach = 0.0;
+  double density = 0.0;
 };
 
 NoiseReading ReadNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, int samples, int k,
@@ -52,8 +54,10 @@ NoiseReading ReadNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, 
   std::vector<double> distances;
   std::vector<double> residuals;
   std::vector<double> reaches;
+  std::vector<double> densities;
   residuals.reserve(static_cast<std::size_t>(points.cols() / step + 1));
   reaches.reserve(residuals.capacity());
+  densities.reserve(residuals.capacity());
   Eigen::MatrixXd A(k, 6);
   Eigen::VectorXd height(k);
   // Height above the neighbours' principal plane, as a quadratic in the in-plane coordinates.
@@ -87,6 +91,9 @@ NoiseReading ReadNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, 
     const Eigen::Vector3d q = frame.axes.transpose() * (points.col(i) - frame.mean);
     residuals.push_back(std::abs(q.x() - monomials(q).dot(c)));
     reaches.push_back(std::sqrt(farthest));
+    // The n neighbours and the point itself within the farthest's circle on the surface.
+    if (farthest > 0.0)
+      densities.push_back(static_cast<double>(n + 1) / (std::numbers::pi * farthest));
   }
   if (residuals.empty()) return {};
   const auto median = [](std::vector<double>& values) {
@@ -94,7 +101,7 @@ NoiseReading ReadNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, 
     std::nth_element(values.begin(), middle, values.end());
     return *middle;
   };
-  return {1.4826 * median(residuals), median(reaches)};
+  return {1.4826 * median(residuals), median(reaches), densities.empty() ? 0.0 : median(densities)};
 }
 
 }  // namespace
@@ -124,6 +131,7 @@ NoiseEstimate EstimateNoise(const Eigen::Matrix3Xd& points, const PointIndex& in
     if (settled) break;
   }
   estimate.sigma = reading.sigma;
+  estimate.density = reading.density;
   return estimate;
 }
 

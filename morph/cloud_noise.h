@@ -12,6 +12,10 @@ struct NoiseEstimate {
   double sigma = 0.0;  ///< standard deviation along the normal; 0 when no point could be fitted
   /// The cloud was read at every stride-th point: 1 unless it was denser than its noise.
   int stride = 1;
+  /// Points per unit of area (the cloud's units squared) of the cloud as read, every
+  /// stride-th point: the median over the samples of n / (pi r^2), r the distance to the
+  /// farthest of the n neighbours a sample's fit used. 0 when no point could be fitted.
+  double density = 0.0;
 };
 
 /// The standard deviation of a cloud's noise along its surface, from the cloud alone. At

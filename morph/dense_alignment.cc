@@ -73,6 +73,10 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   result.noise_seconds = Since(phase);
   const double relative_surface_noise = noise / options.surface_noise;
   result.noise = noise;
+  result.noise_m = noise * to_target.scale;
+  result.density_m2 =
+      (options.thin_to_noise ? estimate.density : estimate.density * estimate.stride) /
+      (to_target.scale * to_target.scale);
 
   // Estimated normals average over more points as the noise grows, as the plane points
   // below do.

@@ -115,6 +115,10 @@ struct DenseResult {
   Eigen::Matrix3Xd target_normals;  ///< unit, of those points; given or estimated
   std::vector<DenseRound> rounds;
   double noise = 0.0;          ///< estimated sensor noise (standard deviation), template sizes
+  double noise_m = 0.0;        ///< the same in the target's units (metres): noise x the morph's scale
+  /// Target points per square metre (target units), as the stage used them (every
+  /// stride-th): NoiseEstimate::density over the morph's scale squared.
+  double density_m2 = 0.0;
   int surface_neighbours = 0;  ///< target points averaged per plane point, from the noise
   int normal_passes = 0;       ///< EstimateNormals' passes, from the noise (0: own normals)
   int stride = 1;              ///< every stride-th target point was used (thin_to_noise)

@@ -88,6 +88,8 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
     j["dense"] = {{"ok", dense->ok},
                   {"error", dense->error},
                   {"estimated_noise_rel", dense->noise},
+                  {"estimated_noise_m", dense->noise_m},
+                  {"density_per_m2", dense->density_m2},
                   {"surface_neighbours", dense->surface_neighbours},
                   {"normal_passes", dense->normal_passes},
                   {"target_stride", dense->stride},

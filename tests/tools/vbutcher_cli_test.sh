@@ -93,6 +93,30 @@ check "morph uses a dense noisy cloud at every n-th point" 0 "every [0-9]*th poi
   "$vbutcher" morph --template "$work/dense/template.ply" --target "$work/dense/target_000_cloud.ply" \
   --out "$work/d.ply" --stage full --report "$work/dr.json"
 grep -Eq '"target_stride": ([2-9]|1[0-9])' "$work/dr.json" 2>/dev/null || { echo "FAIL: report lacks the stride"; failures=$((failures + 1)); }
+# The report's density against the cloud's: 80,000 points over the template's area (the
+# cloud covers the whole carcass), every stride-th used; and its noise in metres, as printed.
+/usr/bin/python3 - "$work/dr.json" "$work/dense/template.ply" <<'PY' || failures=$((failures + 1))
+import json, re, sys
+import numpy as np
+dense = json.load(open(sys.argv[1]))["dense"]
+data = open(sys.argv[2], "rb").read()
+head, _, body = data.partition(b"end_header\n")
+head = head.decode()
+nv = int(re.search(r"element vertex (\d+)", head).group(1))
+nf = int(re.search(r"element face (\d+)", head).group(1))
+props = re.findall(r"property (\w+) (\w+)\n", head.split("element face")[0])
+vertex = np.dtype([(n, {"float": "<f4", "double": "<f8"}[t]) for t, n in props])
+v = np.frombuffer(body[: nv * vertex.itemsize], dtype=vertex)
+P = np.stack([v["x"], v["y"], v["z"]], 1).astype(float)
+F = np.frombuffer(body[nv * vertex.itemsize :][: nf * 13], dtype=np.dtype([("n", "u1"), ("i", "<i4", 3)]))["i"]
+area = np.linalg.norm(np.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]]), axis=1).sum() / 2
+want = 80000 / dense["target_stride"] / area
+# Measured: 0.92 of it.
+if abs(dense["density_per_m2"] / want - 1) > 0.12:
+    sys.exit(f"FAIL: density {dense['density_per_m2']:.0f} per m2, want {want:.0f}")
+if not 0 < dense["estimated_noise_m"] < 0.05:
+    sys.exit(f"FAIL: noise {dense['estimated_noise_m']} m")
+PY
 check "morph --cuts needs --annotations" 2 "--annotations" \
   "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/x.ply" --stage full --cuts "$work/x.json"
 check "morph --annotations needs the full stage" 2 "--stage full" \
