@@ -117,6 +117,9 @@ constexpr int kChangeMm = 40;
 // picture this many frame sets earlier (half a second at 30 fps), so a carcass moving out
 // along the rail, whose picture changes as it goes, is not taken for a new one.
 constexpr int kStillSets = 15;
+// Threads a morph runs on, the job thread's included: the line PC's two cores. The capture
+// thread only counts pixels while a carcass hangs (docs/development.md, threads).
+constexpr int kMorphThreads = 2;
 
 }  // namespace
 
@@ -129,7 +132,14 @@ Pipeline::Pipeline(const DaemonConfig& config, morph::TemplateArtifact artifact,
       numbers_(UsableStateFile(config.job.state_file, &start_warning_)) {
   if (!numbers_.warning().empty())
     start_warning_ += (start_warning_.empty() ? "" : "; ") + numbers_.warning();
-  morph_options_ = MorphOptionsFor(config_, artifact_);
+  // The morph's second thread allocates from the arena, as the loop threads do.
+  morpher_ = std::make_unique<morph::Morpher>(
+      artifact_.model, artifact_.annotations, MorphOptionsFor(config_, artifact_),
+      morph::MorpherOptions{.threads = kMorphThreads,
+                            .worker_wrapper = [](const std::function<void()>& body) {
+                              const MemoryBudgetScope budget;
+                              body();
+                            }});
   version_ = std::string(Version()) + " (" + GitRevision() + ")";
   fusion_ = std::make_unique<perception::Fusion>(config_.rig, config_.fusion);
   slot_cloud_ = fusion_->MakeOutput();
@@ -596,11 +606,10 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
   if (refusal.empty()) {
     Log(Priority::kInfo, "%s: morphing %d points\n",
                  report.carcass_id.c_str(), report.fused_points);
-    morph::MorphOptions options = morph_options_;
-    options.deadline.at =
-        Clock::now() + std::chrono::milliseconds(config_.job.morph_deadline_ms);
-    options.deadline.cancel = &stop_;
-    result = morph::MorphCarcass(artifact_.model, artifact_.annotations, points, normals, options);
+    morph::MorphDeadline deadline;
+    deadline.at = Clock::now() + std::chrono::milliseconds(config_.job.morph_deadline_ms);
+    deadline.cancel = &stop_;
+    result = morpher_->Morph(points, normals, deadline);
   } else {
     result.error = refusal;
   }

@@ -14,6 +14,7 @@
 #include "daemon/saw_session.h"
 #include "io/lcm_publisher.h"
 #include "morph/morph_carcass.h"
+#include "morph/morpher.h"
 #include "morph/template_artifact.h"
 #include "perception/fusion.h"
 #include "perception/rig_calibrator.h"
@@ -113,7 +114,8 @@ class Pipeline {
 
   DaemonConfig config_;
   morph::TemplateArtifact artifact_;
-  morph::MorphOptions morph_options_;
+  /// Made once, after artifact_: the job thread's morph, its worker inside the memory budget.
+  std::unique_ptr<morph::Morpher> morpher_;
   io::Publisher* publisher_;
   SawSession* saw_;
   std::string start_warning_;  // before numbers_, whose construction may write it

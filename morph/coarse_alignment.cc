@@ -141,7 +141,7 @@ Eigen::Matrix3Xd EveryNth(const Eigen::Matrix3Xd& points, int wanted) {
 }  // namespace
 
 CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target,
-                         const CoarseOptions& options) {
+                         const CoarseOptions& options, WorkerPool* pool) {
   const auto start = std::chrono::steady_clock::now();
   CoarseResult result;
   if (target.cols() < 50) {
@@ -261,7 +261,9 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     }
     ArticulationOptions choice = options.articulation;
     choice.rounds = std::min(choice.rounds, options.choice_rounds);
-    for (std::size_t k : picked) {
+    // The fits are independent: each on one of the pool's threads.
+    const auto fit_candidate = [&](int p) {
+      const std::size_t k = picked[static_cast<std::size_t>(p)];
       const Similarity back = candidates[k].from_to.Inverse();
       const Eigen::Matrix3Xd placed = Apply(back, target);
       const PointIndex placed_index(placed);
@@ -269,9 +271,15 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
           ArticulateTemplate(model, placed, placed_index,
                              Apply(back, result.target_features.terminals),
                              DeformationState::Identity(model.graph.num_nodes()), choice);
-      if (!fit.ok) continue;
+      if (!fit.ok) return;
       articulated[k] = fit.disagreement;
       articulated_states[k] = std::move(fit.state);
+    };
+    const int count = static_cast<int>(picked.size());
+    if (pool != nullptr) {
+      pool->ForEach(count, fit_candidate);
+    } else {
+      for (int p = 0; p < count; ++p) fit_candidate(p);
     }
   }
   const bool use_articulated = std::any_of(articulated.begin(), articulated.end(),

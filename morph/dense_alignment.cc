@@ -22,7 +22,7 @@ double Since(std::chrono::steady_clock::time_point start) {
 
 DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
                        const Eigen::Matrix3Xd& target, const Eigen::Matrix3Xd& target_normals,
-                       const DenseOptions& options) {
+                       const DenseOptions& options, WorkerPool* pool) {
   const auto start = std::chrono::steady_clock::now();
   DenseResult result;
   if (!coarse.ok) {
@@ -134,15 +134,38 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   for (int round = 0; round < options.rounds; ++round) {
     if (options.unbias_plane_points) curvature = geometry::CurvatureSums(posed, posed.N);
     DenseRound info;
-    phase = std::chrono::steady_clock::now();
-    const DenseAssociation pairs =
-        AssociateDense(posed.V, posed.N, samples, points, normals, *index, options.association);
+    // The two ways are independent until the constraints are made: one per thread. Times
+    // are summed over both.
+    DenseAssociation pairs, back;
+    std::vector<bool> kept, back_kept;
+    double seconds[2][2] = {{0, 0}, {0, 0}};  // [way][association, filter]
+    const auto associate = [&](int way) {
+      auto begin = std::chrono::steady_clock::now();
+      if (way == 0) {
+        pairs =
+            AssociateDense(posed.V, posed.N, samples, points, normals, *index, options.association);
+        seconds[0][0] = Since(begin);
+        begin = std::chrono::steady_clock::now();
+        kept = filter(pairs.source, pairs.target);
+      } else {
+        const PointIndex posed_index(posed.V);
+        back = AssociateDense(points, normals, reverse_samples, posed.V, posed.N, posed_index,
+                              options.association);
+        seconds[1][0] = Since(begin);
+        begin = std::chrono::steady_clock::now();
+        back_kept = filter(back.target, back.source);  // back.source are target points
+      }
+      seconds[way][1] = Since(begin);
+    };
+    const int ways = reverse_samples.empty() ? 1 : 2;
+    if (pool != nullptr) {
+      pool->ForEach(ways, associate);
+    } else {
+      for (int way = 0; way < ways; ++way) associate(way);
+    }
     info.associated = pairs.size();
-    info.association_seconds = Since(phase);
-
-    phase = std::chrono::steady_clock::now();
-    const std::vector<bool> kept = filter(pairs.source, pairs.target);
-    info.filter_seconds = Since(phase);
+    info.association_seconds = seconds[0][0] + seconds[1][0];
+    info.filter_seconds = seconds[0][1] + seconds[1][1];
 
     std::vector<PointConstraint> constraints;
     for (int k = 0; k < pairs.size(); ++k) {
@@ -152,16 +175,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     }
     info.kept = static_cast<int>(constraints.size());
 
-    if (!reverse_samples.empty()) {
-      phase = std::chrono::steady_clock::now();
-      const PointIndex posed_index(posed.V);
-      const DenseAssociation back = AssociateDense(points, normals, reverse_samples, posed.V,
-                                                   posed.N, posed_index, options.association);
-      info.association_seconds += Since(phase);
-      phase = std::chrono::steady_clock::now();
-      // back.source are target points, back.target template vertices.
-      const std::vector<bool> back_kept = filter(back.target, back.source);
-      info.filter_seconds += Since(phase);
+    if (ways == 2) {
       info.reverse_associated = back.size();
       for (int k = 0; k < back.size(); ++k) {
         if (!back_kept[static_cast<std::size_t>(k)]) continue;

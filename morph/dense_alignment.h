@@ -132,8 +132,10 @@ struct DenseResult {
 /// template's deformation graph, starting from the coarse node transforms.
 /// @param[in] target 3 by N points in the target's frame (as given to AlignCoarse).
 /// @param[in] target_normals 3 by N unit outward normals, or empty to estimate them.
+/// @param pool when given, each round's two association ways share its threads; the result
+///   is the same on any number of threads.
 DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
                        const Eigen::Matrix3Xd& target, const Eigen::Matrix3Xd& target_normals,
-                       const DenseOptions& options = {});
+                       const DenseOptions& options = {}, WorkerPool* pool = nullptr);
 
 }  // namespace vb::morph

@@ -66,7 +66,10 @@ struct EmbeddedDeformationOptions {
   /// preconditioner) reach the same cost several times faster.
   enum class LinearSolver { kSparseNormalCholesky, kConjugateGradients };
   LinearSolver linear_solver = LinearSolver::kSparseNormalCholesky;
-  int num_threads = 2;
+  /// Ceres' threads for one solve. One: a second gained nothing on these problems (their
+  /// linear solves run on one thread in Ceres 2.1) and made the result depend on how the
+  /// threads shared the sums; the morph's parallel work is elsewhere (Morpher).
+  int num_threads = 1;
   /// The solve stops when a step changes the cost by less than this fraction of it (Ceres'
   /// function_tolerance).
   double function_tolerance = 1e-7;

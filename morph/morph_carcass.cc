@@ -32,7 +32,8 @@ bool Abandoned(CarcassResult* r, const MorphDeadline& deadline) {
 
 CarcassResult MorphFromCoarse(const TemplateModel& model, const io::Annotations& annotations,
                               CoarseResult coarse, const Eigen::Matrix3Xd& target,
-                              const Eigen::Matrix3Xd& normals, const MorphOptions& given) {
+                              const Eigen::Matrix3Xd& normals, const MorphOptions& given,
+                              WorkerPool* pool) {
   const auto start = std::chrono::steady_clock::now();
   const MorphOptions options = WithDeadline(given);
   CarcassResult r;
@@ -41,7 +42,7 @@ CarcassResult MorphFromCoarse(const TemplateModel& model, const io::Annotations&
     if (!r.coarse.ok) {
       r.error = "coarse stage: " + r.coarse.error;
     } else if (!Abandoned(&r, options.deadline)) {
-      r.dense = AlignDense(model, r.coarse, target, normals, options.dense);
+      r.dense = AlignDense(model, r.coarse, target, normals, options.dense, pool);
       if (Abandoned(&r, options.deadline)) {
       } else if (!r.dense.ok) {
         r.error = "dense stage: " + r.dense.error;
@@ -70,18 +71,19 @@ CarcassResult MorphFromCoarse(const TemplateModel& model, const io::Annotations&
 
 CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& annotations,
                            const Eigen::Matrix3Xd& target, const Eigen::Matrix3Xd& normals,
-                           const MorphOptions& options) {
+                           const MorphOptions& options, WorkerPool* pool) {
   const auto start = std::chrono::steady_clock::now();
   CoarseResult coarse;
   try {
-    coarse = AlignCoarse(model, target, WithDeadline(options).coarse);
+    coarse = AlignCoarse(model, target, WithDeadline(options).coarse, pool);
   } catch (const std::exception& e) {  // a bad target is a result, not a crash
     CarcassResult r;
     r.error = e.what();
     r.seconds = Since(start);
     return r;
   }
-  CarcassResult r = MorphFromCoarse(model, annotations, std::move(coarse), target, normals, options);
+  CarcassResult r =
+      MorphFromCoarse(model, annotations, std::move(coarse), target, normals, options, pool);
   if (!r.ok && options.deadline.Passed()) Abandoned(&r, options.deadline);
   r.seconds = Since(start);
   return r;

@@ -44,14 +44,18 @@ struct CarcassResult {
 /// The stages after the coarse one, from @p coarse: dense surface, the whole-morph check, cut
 /// transfer and virtual cutting. MorphCarcass calls it after AlignCoarse; the benchmark also
 /// calls it from a coarse result it fitted to the ground truth. Never throws on a bad target.
+/// @param pool threads to share the work with (none: the caller's alone).
 CarcassResult MorphFromCoarse(const TemplateModel& model, const io::Annotations& annotations,
                               CoarseResult coarse, const Eigen::Matrix3Xd& target,
-                              const Eigen::Matrix3Xd& normals, const MorphOptions& options = {});
+                              const Eigen::Matrix3Xd& normals, const MorphOptions& options = {},
+                              WorkerPool* pool = nullptr);
 
 /// Morphs @p model onto @p target (points and, optionally, unit normals of the same count)
 /// and carries @p annotations over. Never throws on a bad target: the result says why.
+/// @param pool threads to share the work with (none: the caller's alone); see Morpher,
+///   which keeps one.
 CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& annotations,
                            const Eigen::Matrix3Xd& target, const Eigen::Matrix3Xd& normals,
-                           const MorphOptions& options = {});
+                           const MorphOptions& options = {}, WorkerPool* pool = nullptr);
 
 }  // namespace vb::morph

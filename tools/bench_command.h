@@ -7,6 +7,7 @@
 
 #include "geometry/triangle_mesh.h"
 #include "morph/dense_alignment.h"
+#include "morph/morpher.h"
 #include "perception/carcass_generator.h"
 
 namespace vb::tools {
@@ -29,6 +30,8 @@ struct BenchOptions {
   /// Full stage: start the dense stage from the ground truth instead of the coarse stage's
   /// result, to measure how far the dense stage's own energy moves the cut lines.
   bool start_from_truth = false;
+  /// Full stage: threads a morph runs on (morph::MorpherOptions::threads).
+  int threads = morph::MorpherOptions{}.threads;
   std::filesystem::path csv;  ///< default bench_<stage>.csv
 };
 

@@ -106,14 +106,14 @@ morph::CoarseResult CoarseFromTruth(const morph::TemplateModel& model,
 FullRow Evaluate(const morph::TemplateModel& model, const io::Annotations& annotations,
                  const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
                  const perception::PosedCarcass& truth, const morph::MorphOptions& options,
-                 bool start_from_truth, Example* example) {
+                 bool start_from_truth, morph::WorkerPool* pool, Example* example) {
   FullRow row;
   const morph::CarcassResult r =
       start_from_truth
           ? morph::MorphFromCoarse(model, annotations,
                                    CoarseFromTruth(model, points, truth.mesh.V, options), points,
-                                   normals, options)
-          : morph::MorphCarcass(model, annotations, points, normals, options);
+                                   normals, options, pool)
+          : morph::MorphCarcass(model, annotations, points, normals, options, pool);
   const morph::CoarseResult& coarse = r.coarse;
   const morph::DenseResult& dense = r.dense;
   row.coarse_s = coarse.total_seconds;
@@ -209,6 +209,7 @@ int RunFullBench(const BenchOptions& options) {
   if (options.dense_rounds < 1) throw InputError("bench: --dense-rounds must be at least 1");
   morph::MorphOptions morph_options;
   morph_options.dense.rounds = options.dense_rounds;
+  morph::WorkerPool pool(options.threads);
   const morph::DenseOptions& dense_options = morph_options.dense;
   // The rig's carcasses hang from the gambrel, as on the line: the daemon's upright prior.
   morph::MorphOptions rig_options = morph_options;
@@ -248,7 +249,7 @@ int RunFullBench(const BenchOptions& options) {
         }
         const bool want_example = !have_example && std::string(input) == "cloud";
         FullRow row = Evaluate(model, carcass.annotations, points, normals, truth, morph_options,
-                               options.start_from_truth, want_example ? &example : nullptr);
+                               options.start_from_truth, &pool, want_example ? &example : nullptr);
         have_example = have_example || (want_example && row.ok);
         row.input = input;
         row.sigma_mm = sigma;
@@ -289,7 +290,7 @@ int RunFullBench(const BenchOptions& options) {
       fusion.Fuse(views, &cloud);
       FullRow row = Evaluate(model, carcass.annotations, cloud.points.leftCols(cloud.size),
                              cloud.normals.leftCols(cloud.size), truth, rig_options,
-                             options.start_from_truth, nullptr);
+                             options.start_from_truth, &pool, nullptr);
       row.input = "rig";
       row.sigma_mm = -1;
       row.index = i;

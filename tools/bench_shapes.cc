@@ -326,6 +326,7 @@ int RunShapeBench(const ShapeBenchOptions& options) {
   }
   std::vector<Row> rows;
   int done = 0;
+  morph::WorkerPool pool(options.threads);
   const auto bench_start = std::chrono::steady_clock::now();
   for (const BenchCase& c : cases) {
     morph::TemplateModel model;
@@ -407,12 +408,12 @@ int RunShapeBench(const ShapeBenchOptions& options) {
           Row coarse_row = base, full_row = base;
           coarse_row.method = "coarse";
           full_row.method = "full";
-          const morph::CoarseResult coarse = morph::AlignCoarse(model, points);
+          const morph::CoarseResult coarse = morph::AlignCoarse(model, points, {}, &pool);
           coarse_row.seconds = coarse.total_seconds;
           std::string error;
           if (coarse.ok) {
             Score(coarse.mesh.V, placed.V, rest, &coarse_row);
-            const morph::DenseResult dense = morph::AlignDense(model, coarse, points, Eigen::Matrix3Xd());
+            const morph::DenseResult dense = morph::AlignDense(model, coarse, points, Eigen::Matrix3Xd(), {}, &pool);
             full_row.seconds = coarse.total_seconds + dense.total_seconds;
             if (dense.ok) {
               Score(dense.mesh.V, placed.V, rest, &full_row);

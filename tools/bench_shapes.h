@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "morph/morpher.h"
 #include "tools/shape_set/surface_wrap.h"
 
 namespace vb::tools {
@@ -21,6 +22,8 @@ struct ShapeBenchOptions {
   /// closed wrap), or the posed lamb.
   int points = 20000;
   std::uint64_t seed = 1;
+  /// Threads a morph runs on (morph::MorpherOptions::threads).
+  int threads = morph::MorpherOptions{}.threads;
   std::filesystem::path csv = "bench_shapes.csv";
   /// The picture (error per shape and stage, one example morph per shape); default the CSV's
   /// path with .png. Made by scripts/plot-shapes (python3-matplotlib).

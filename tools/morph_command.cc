@@ -76,9 +76,11 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   // The full stage is the pipeline's own path (morph, whole-morph check, cuts).
   morph::CarcassResult result;
   if (options.stage == "full") {
-    result = morph::MorphCarcass(model, annotations, target.points, target.normals, morph_options);
+    morph::Morpher morpher(model, annotations, morph_options, {.threads = options.threads, .worker_wrapper = {}});
+    result = morpher.Morph(target.points, target.normals);
   } else {
-    result.coarse = morph::AlignCoarse(model, target.points, morph_options.coarse);
+    morph::WorkerPool pool(options.threads);
+    result.coarse = morph::AlignCoarse(model, target.points, morph_options.coarse, &pool);
   }
   const morph::CoarseResult& coarse = result.coarse;
   const morph::DenseResult& dense = result.dense;

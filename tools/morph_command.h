@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "morph/coarse_alignment.h"
+#include "morph/morpher.h"
 
 namespace vb::tools {
 
@@ -20,6 +21,7 @@ struct MorphCommandOptions {
   /// Upright prior (CoarseOptions::upright), on when both directions are given.
   std::vector<double> template_up, target_up;
   double max_tilt_deg = morph::UprightPrior{}.max_tilt_deg;
+  int threads = morph::MorpherOptions{}.threads;  ///< threads the morph runs on
 };
 
 /// `vbutcher morph`: loads the template and target, morphs, writes the deformed template

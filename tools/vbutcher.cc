@@ -81,6 +81,9 @@ int main(int argc, char** argv) {
   morph_cmd->add_option("--out", morph.out_path, "Deformed template (.ply, .off, .obj)")
       ->required();
   morph_cmd->add_option("--stage", morph.stage, "coarse | full")->capture_default_str();
+  morph_cmd->add_option("--threads", morph.threads, "Threads the morph runs on")
+      ->check(CLI::Range(1, vb::morph::WorkerPool::kMaxThreads))
+      ->capture_default_str();
   morph_cmd->add_option("--report", morph.report_path,
                         "JSON report of timings, features, association, solver");
   morph_cmd->add_option("--annotations", morph.annotations_path,
@@ -161,6 +164,9 @@ int main(int argc, char** argv) {
   bench_cmd->add_flag("--start-from-truth", bench.start_from_truth,
                       "Full stage: start the dense stage from node transforms fitted to the true "
                       "surface (what the dense stage's own energy does to a right answer)");
+  bench_cmd->add_option("--threads", bench.threads, "Full stage: threads a morph runs on")
+      ->check(CLI::Range(1, vb::morph::WorkerPool::kMaxThreads))
+      ->capture_default_str();
   bench_cmd->add_option("--csv", bench.csv, "One row per morph (default bench_<stage>.csv)");
 
   vb::tools::VirtualRigCommandOptions virtual_rig;
@@ -275,6 +281,9 @@ int main(int argc, char** argv) {
   shape_bench_cmd->add_option("--points", shape_bench.points, "Points sampled over each target's surface")
       ->capture_default_str();
   shape_bench_cmd->add_option("--seed", shape_bench.seed, "Seed of noise and placement")->capture_default_str();
+  shape_bench_cmd->add_option("--threads", shape_bench.threads, "Threads a morph runs on")
+      ->check(CLI::Range(1, vb::morph::WorkerPool::kMaxThreads))
+      ->capture_default_str();
   shape_bench_cmd->add_option("--wrap-alpha", shape_bench.wrap_alpha,
                               "Alpha wrap of the third-party models: alpha, of their diagonal")
       ->capture_default_str();

@@ -1,0 +1,41 @@
+#pragma once
+
+#include <functional>
+#include <memory>
+
+namespace vb::morph {
+
+/// Runs a worker thread's whole life: sets the thread up, calls @p body (which returns when
+/// the pool is destroyed) and tears down. The daemon gives each worker its memory budget so.
+using WorkerWrapper = std::function<void(const std::function<void()>& body)>;
+
+/// A fixed set of threads, made once, that share loops with the thread calling ForEach (on
+/// Eigen's ThreadPool, without spinning: idle workers sleep). One ForEach at a time; a pool
+/// is not for concurrent use.
+class WorkerPool {
+ public:
+  /// @param threads threads a loop runs on, the caller's included: 1 makes no worker and
+  ///   runs every loop on the caller. Clamped to [1, kMaxThreads].
+  /// @param wrapper runs each worker thread (none: the thread just runs).
+  explicit WorkerPool(int threads = 1, WorkerWrapper wrapper = {});
+  ~WorkerPool();
+  WorkerPool(const WorkerPool&) = delete;
+  WorkerPool& operator=(const WorkerPool&) = delete;
+
+  static constexpr int kMaxThreads = 16;
+
+  int threads() const { return threads_; }
+
+  /// Calls body(i) once for every i in [0, n), on the caller and the workers, in no set
+  /// order; returns when every call has. A body that writes only its own i's results gives
+  /// the same results on any number of threads. The first exception a call throws is
+  /// rethrown here, after the others have finished.
+  void ForEach(int n, const std::function<void(int)>& body);
+
+ private:
+  struct Pool;
+  int threads_ = 1;
+  std::unique_ptr<Pool> pool_;
+};
+
+}  // namespace vb::morph
