@@ -100,6 +100,8 @@ struct DenseRound {
   /// Of the kept pairs, both ways, before the solve; template sizes.
   double mean_plane_distance = 0.0;
   SolveSummary deformation;
+  /// Eq. (11) and eq. (12), both ways, summed over the threads that ran them (more than
+  /// the wall time when the two ways ran at once).
   double association_seconds = 0.0;
   double filter_seconds = 0.0;
 };

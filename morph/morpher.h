@@ -12,7 +12,8 @@ namespace vb::morph {
 /// How a Morpher runs.
 struct MorpherOptions {
   /// Threads a morph runs on, the caller's included (the line PC has 2 cores). The
-  /// candidate placements' posture fits share them; the result does not depend on it.
+  /// candidate placements' posture fits and the dense stage's two association ways share
+  /// them; the result does not depend on it.
   int threads = 2;
   /// Runs each worker thread (the daemon: inside its memory budget). None: plain threads.
   WorkerWrapper worker_wrapper;

@@ -53,7 +53,10 @@ WorkerPool::~WorkerPool() = default;
 
 void WorkerPool::ForEach(int n, const std::function<void(int)>& body) {
   if (n <= 0) return;
-  const int helpers = pool_ ? std::min(n, threads_) - 1 : 0;
+  // On one of this pool's workers (a nested loop) the helpers would queue behind the caller
+  // itself: the loop runs here alone.
+  const bool nested = pool_ && pool_->threads.CurrentThreadId() != -1;
+  const int helpers = pool_ && !nested ? std::min(n, threads_) - 1 : 0;
   std::atomic<int> next{0};
   std::mutex error_mutex;
   std::exception_ptr error;
@@ -63,6 +66,7 @@ void WorkerPool::ForEach(int n, const std::function<void(int)>& body) {
       try {
         body(i);
       } catch (...) {
+        next.store(n);  // start nothing more
         const std::lock_guard<std::mutex> lock(error_mutex);
         if (!error) error = std::current_exception();
       }

@@ -5,13 +5,14 @@
 
 namespace vb::morph {
 
-/// Runs a worker thread's whole life: sets the thread up, calls @p body (which returns when
-/// the pool is destroyed) and tears down. The daemon gives each worker its memory budget so.
+/// Runs a worker thread's whole life: sets the thread up, calls @p body exactly once (it
+/// returns when the pool is destroyed) and tears down; it must not throw. The daemon gives
+/// each worker its memory budget so.
 using WorkerWrapper = std::function<void(const std::function<void()>& body)>;
 
 /// A fixed set of threads, made once, that share loops with the thread calling ForEach (on
-/// Eigen's ThreadPool, without spinning: idle workers sleep). One ForEach at a time; a pool
-/// is not for concurrent use.
+/// Eigen's ThreadPool, without spinning: idle workers sleep). A ForEach called from a body
+/// running on one of the workers runs on that worker alone.
 class WorkerPool {
  public:
   /// @param threads threads a loop runs on, the caller's included: 1 makes no worker and
@@ -28,8 +29,8 @@ class WorkerPool {
 
   /// Calls body(i) once for every i in [0, n), on the caller and the workers, in no set
   /// order; returns when every call has. A body that writes only its own i's results gives
-  /// the same results on any number of threads. The first exception a call throws is
-  /// rethrown here, after the others have finished.
+  /// the same results on any number of threads. Once a call throws, no further index is
+  /// started; the first exception caught is rethrown here after the running calls finish.
   void ForEach(int n, const std::function<void(int)>& body);
 
  private:

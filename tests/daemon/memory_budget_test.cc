@@ -218,8 +218,8 @@ TEST_F(MemoryBudgetTest, SteadyStateJobsAllocateOnlyFromTheArenaAndGiveItAllBack
     EXPECT_GT(s.arena_allocations - previous.arena_allocations, 10000)
         << "job " << j << " hardly allocated: is it still running on this thread?";
     EXPECT_LE(s.arena_live_bytes, first.arena_live_bytes) << "job " << j;
-    // Nothing outside the arena either: the morph's worker is inside the budget, and no
-    // solve starts threads of its own (Ceres runs each on one thread: docs/decisions.md).
+    // Nothing outside the arena either: the morph's worker is inside the budget, and Ceres
+    // solves on the calling thread (docs/decisions.md).
     EXPECT_EQ(s.other_allocations - previous.other_allocations, 0) << "job " << j;
     EXPECT_LT(s.arena_peak_bytes, kArenaBytes / 2) << "job " << j;  // the daemon's is 512 MiB
   }

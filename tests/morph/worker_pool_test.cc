@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
+#include <condition_variable>
 #include <mutex>
 #include <set>
 #include <stdexcept>
@@ -12,6 +14,27 @@
 namespace vb::morph {
 namespace {
 
+// Holds the first `count` calls until all of them have arrived (or 10 s have passed), so
+// that each is on a thread of its own however the threads are scheduled: a thread held here
+// cannot take another index.
+class Rendezvous {
+ public:
+  explicit Rendezvous(int count) : count_(count) {}
+  void Arrive() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    if (arrived_ >= count_) return;
+    ++arrived_;
+    all_.notify_all();
+    all_.wait_for(lock, std::chrono::seconds(10), [&] { return arrived_ >= count_; });
+  }
+
+ private:
+  const int count_;
+  int arrived_ = 0;
+  std::mutex mutex_;
+  std::condition_variable all_;
+};
+
 TEST(WorkerPoolTest, CallsEveryIndexOnceOnAsManyThreadsAsAsked) {
   for (int threads : {1, 2, 3}) {
     WorkerPool pool(threads);
@@ -20,12 +43,14 @@ TEST(WorkerPoolTest, CallsEveryIndexOnceOnAsManyThreadsAsAsked) {
       std::vector<std::atomic<int>> calls(static_cast<std::size_t>(n));
       std::mutex mutex;
       std::set<std::thread::id> ids;
+      Rendezvous first(std::min(n, threads));
       pool.ForEach(n, [&](int i) {
         ++calls[static_cast<std::size_t>(i)];
-        // Long enough that every thread gets an index before they run out.
-        std::this_thread::sleep_for(std::chrono::milliseconds(2));
-        const std::lock_guard<std::mutex> lock(mutex);
-        ids.insert(std::this_thread::get_id());
+        {
+          const std::lock_guard<std::mutex> lock(mutex);
+          ids.insert(std::this_thread::get_id());
+        }
+        first.Arrive();
       });
       for (int i = 0; i < n; ++i) EXPECT_EQ(calls[static_cast<std::size_t>(i)], 1) << i;
       if (n == 0) continue;
@@ -44,45 +69,76 @@ TEST(WorkerPoolTest, ClampsTheThreadCount) {
   EXPECT_EQ(WorkerPool(1000).threads(), WorkerPool::kMaxThreads);
 }
 
-TEST(WorkerPoolTest, RethrowsABodysExceptionAfterTheOthersFinish) {
+TEST(WorkerPoolTest, RethrowsABodysExceptionAndStartsNothingAfterIt) {
+  for (int threads : {1, 2}) {
+    WorkerPool pool(threads);
+    std::atomic<int> finished{0};
+    EXPECT_THROW(pool.ForEach(10,
+                              [&](int i) {
+                                if (i == 3) throw std::runtime_error("index 3");
+                                ++finished;
+                              }),
+                 std::runtime_error);
+    // On one thread the indices run in order: 0, 1 and 2, then none. On two, which of the
+    // others ran depends on the scheduling.
+    if (threads == 1) {
+      EXPECT_EQ(finished, 3);
+    }
+    // The pool still works afterwards.
+    std::atomic<int> sum{0};
+    pool.ForEach(4, [&](int i) { sum += i; });
+    EXPECT_EQ(sum, 6);
+  }
+}
+
+// A worker that waited for helpers would wait for itself: its nested loop runs on it alone.
+TEST(WorkerPoolTest, ANestedLoopOnAWorkerRunsThereAlone) {
   WorkerPool pool(2);
-  std::atomic<int> finished{0};
-  EXPECT_THROW(pool.ForEach(10,
-                            [&](int i) {
-                              if (i == 3) throw std::runtime_error("index 3");
-                              std::this_thread::sleep_for(std::chrono::milliseconds(1));
-                              ++finished;
-                            }),
-               std::runtime_error);
-  EXPECT_EQ(finished, 9);
-  // The pool still works afterwards.
-  std::atomic<int> sum{0};
-  pool.ForEach(4, [&](int i) { sum += i; });
-  EXPECT_EQ(sum, 6);
+  const std::thread::id caller = std::this_thread::get_id();
+  std::atomic<int> calls{0};
+  Rendezvous both(2);
+  pool.ForEach(2, [&](int) {
+    both.Arrive();  // each outer call on its own thread, the worker's included
+    const std::thread::id outer = std::this_thread::get_id();
+    pool.ForEach(3, [&](int) {
+      if (outer != caller) {
+        EXPECT_EQ(std::this_thread::get_id(), outer);
+      }
+      ++calls;
+    });
+  });
+  EXPECT_EQ(calls, 6);
 }
 
 TEST(WorkerPoolTest, RunsEachWorkerInsideTheWrapper) {
   std::atomic<int> wrapped{0};
   thread_local bool inside = false;
-  {
-    WorkerPool pool(3, [&](const std::function<void()>& body) {
-      inside = true;
-      ++wrapped;
-      body();
-    });
-    std::atomic<int> outside_calls{0};
-    std::mutex mutex;
-    std::set<std::thread::id> workers;
-    pool.ForEach(30, [&](int) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-      if (!inside) ++outside_calls;
+  WorkerPool pool(3, [&](const std::function<void()>& body) {
+    inside = true;
+    ++wrapped;
+    body();
+  });
+  std::mutex mutex;
+  int caller_calls = 0;
+  std::set<std::thread::id> workers;
+  const std::thread::id caller = std::this_thread::get_id();
+  Rendezvous all(3);
+  pool.ForEach(30, [&](int) {
+    {
       const std::lock_guard<std::mutex> lock(mutex);
-      if (inside) workers.insert(std::this_thread::get_id());
-    });
-    EXPECT_EQ(wrapped, 2);  // two workers; the caller is not wrapped
-    EXPECT_EQ(workers.size(), 2u);
-    EXPECT_GT(outside_calls, 0);  // the caller took part
-  }
+      if (std::this_thread::get_id() == caller) {
+        EXPECT_FALSE(inside);  // the caller is not wrapped
+        ++caller_calls;
+      } else {
+        EXPECT_TRUE(inside) << "a worker outside the wrapper";
+        workers.insert(std::this_thread::get_id());
+      }
+    }
+    all.Arrive();
+  });
+  EXPECT_EQ(wrapped, 2);  // two workers
+  EXPECT_EQ(workers.size(), 2u);
+  EXPECT_GT(caller_calls, 0);
 }
 
 }  // namespace
