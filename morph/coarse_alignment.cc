@@ -275,12 +275,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
       articulated[k] = fit.disagreement;
       articulated_states[k] = std::move(fit.state);
     };
-    const int count = static_cast<int>(picked.size());
-    if (pool != nullptr) {
-      pool->ForEach(count, fit_candidate);
-    } else {
-      for (int p = 0; p < count; ++p) fit_candidate(p);
-    }
+    ForEach(pool, static_cast<int>(picked.size()), fit_candidate);
   }
   const bool use_articulated = std::any_of(articulated.begin(), articulated.end(),
                                            [](double d) { return std::isfinite(d); });

@@ -158,11 +158,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
       seconds[way][1] = Since(begin);
     };
     const int ways = reverse_samples.empty() ? 1 : 2;
-    if (pool != nullptr) {
-      pool->ForEach(ways, associate);
-    } else {
-      for (int way = 0; way < ways; ++way) associate(way);
-    }
+    ForEach(pool, ways, associate);
     info.associated = pairs.size();
     info.association_seconds = seconds[0][0] + seconds[1][0];
     info.filter_seconds = seconds[0][1] + seconds[1][1];

@@ -84,4 +84,12 @@ void WorkerPool::ForEach(int n, const std::function<void(int)>& body) {
   if (error) std::rethrow_exception(error);
 }
 
+void ForEach(WorkerPool* pool, int n, const std::function<void(int)>& body) {
+  if (pool != nullptr) {
+    pool->ForEach(n, body);
+  } else {
+    for (int i = 0; i < n; ++i) body(i);
+  }
+}
+
 }  // namespace vb::morph

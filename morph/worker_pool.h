@@ -39,4 +39,7 @@ class WorkerPool {
   std::unique_ptr<Pool> pool_;
 };
 
+/// @p pool's ForEach, or the same loop on the caller alone when @p pool is null.
+void ForEach(WorkerPool* pool, int n, const std::function<void(int)>& body);
+
 }  // namespace vb::morph

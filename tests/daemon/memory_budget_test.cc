@@ -154,16 +154,8 @@ TEST_F(MemoryBudgetTest, SteadyStateJobsAllocateOnlyFromTheArenaAndGiveItAllBack
   morph::MorphOptions options;
   options.coarse.upright.enabled = true;
   std::vector<Eigen::Matrix3Xd> clouds;
-  for (std::uint64_t seed : {31u, 32u, 33u, 34u}) {
-    perception::PoseOptions pose;
-    pose.arbitrary_orientation = false;
-    const perception::PosedCarcass truth =
-        perception::PoseCarcass(*carcass_, perception::SampleCarcassPose(seed, pose));
-    perception::CloudOptions cloud;
-    cloud.sigma_m = 0.003;
-    cloud.missing_regions = true;
-    clouds.push_back(perception::SampleSurfaceCloud(truth, cloud, seed + 1).points);
-  }
+  for (std::uint64_t seed : {31u, 32u, 33u, 34u})
+    clouds.push_back(test::HangingCloud(*carcass_, seed, 0.003));
   struct After {
     MemoryBudgetStats stats;
     std::string status;

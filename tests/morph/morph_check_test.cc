@@ -12,19 +12,6 @@ namespace {
 
 using MorphCheckTest = test::LambTemplateTest;
 
-// A carcass hanging upright as on the line (+z up, as the template), seen by a ring of
-// cameras: a partial, noisy cloud.
-Eigen::Matrix3Xd HangingCloud(const perception::CarcassTemplate& carcass, std::uint64_t seed,
-                              perception::PosedCarcass* truth) {
-  perception::PoseOptions pose;
-  pose.arbitrary_orientation = false;
-  *truth = perception::PoseCarcass(carcass, perception::SampleCarcassPose(seed, pose));
-  perception::CloudOptions cloud;
-  cloud.sigma_m = 0.003;
-  cloud.missing_regions = true;
-  return perception::SampleSurfaceCloud(*truth, cloud, seed + 1).points;
-}
-
 double MeanErrorRelative(const CarcassResult& r, const perception::PosedCarcass& truth) {
   return (r.dense.mesh.V - truth.mesh.V).colwise().norm().mean() /
          geometry::BoundingBoxDiagonal(truth.mesh.V);
@@ -34,7 +21,7 @@ TEST_F(MorphCheckTest, TrustsAGoodMorphAndDistrustsAnUpsideDownOne) {
   int wrong_morphs = 0;
   for (std::uint64_t seed : {2000003u, 2000011u}) {
     perception::PosedCarcass truth;
-    const Eigen::Matrix3Xd cloud = HangingCloud(*carcass_, seed, &truth);
+    const Eigen::Matrix3Xd cloud = test::HangingCloud(*carcass_, seed, 0.003, &truth);
 
     MorphOptions upright;
     upright.coarse.upright.enabled = true;  // the truth: hind legs up
@@ -63,7 +50,7 @@ TEST_F(MorphCheckTest, TrustsAGoodMorphAndDistrustsAnUpsideDownOne) {
 // on the second going on from whatever coarse result it is handed.
 TEST_F(MorphCheckTest, MorphFromCoarseGoesOnFromTheCoarseResultItIsGiven) {
   perception::PosedCarcass truth;
-  const Eigen::Matrix3Xd cloud = HangingCloud(*carcass_, 2000003u, &truth);
+  const Eigen::Matrix3Xd cloud = test::HangingCloud(*carcass_, 2000003u, 0.003, &truth);
   MorphOptions options;
   options.coarse.upright.enabled = true;
   const CarcassResult whole = MorphCarcass(*model_, carcass_->annotations, cloud, {}, options);
@@ -89,7 +76,7 @@ TEST_F(MorphCheckTest, MorphFromCoarseGoesOnFromTheCoarseResultItIsGiven) {
 
 TEST_F(MorphCheckTest, UprightPriorOnlyConsidersPlacementsWithinTheTilt) {
   perception::PosedCarcass truth;
-  const Eigen::Matrix3Xd cloud = HangingCloud(*carcass_, 2000005u, &truth);
+  const Eigen::Matrix3Xd cloud = test::HangingCloud(*carcass_, 2000005u, 0.003, &truth);
   for (const Eigen::Vector3d& up : {Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0, 0, -1)}) {
     CoarseOptions options;
     options.upright = {.enabled = true, .target_up = up, .max_tilt_deg = 30};

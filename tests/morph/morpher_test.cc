@@ -14,18 +14,6 @@ namespace {
 
 using MorpherTest = test::LambTemplateTest;
 
-// A carcass hanging upright as on the line, seen by a ring of cameras: partial and noisy.
-Eigen::Matrix3Xd HangingCloud(const perception::CarcassTemplate& carcass, std::uint64_t seed,
-                              perception::PosedCarcass* truth) {
-  perception::PoseOptions pose;
-  pose.arbitrary_orientation = false;
-  *truth = perception::PoseCarcass(carcass, perception::SampleCarcassPose(seed, pose));
-  perception::CloudOptions cloud;
-  cloud.sigma_m = 0.004;
-  cloud.missing_regions = true;
-  return perception::SampleSurfaceCloud(*truth, cloud, seed + 1).points;
-}
-
 MorphOptions Upright() {
   MorphOptions options;
   options.coarse.upright.enabled = true;
@@ -36,7 +24,7 @@ MorphOptions Upright() {
 // ways; each writes only its own results, so the morph is the same to the last bit.
 TEST_F(MorpherTest, MorphsTheSameOnOneThreadAsOnSeveral) {
   perception::PosedCarcass truth;
-  const Eigen::Matrix3Xd cloud = HangingCloud(*carcass_, 4000037u, &truth);
+  const Eigen::Matrix3Xd cloud = test::HangingCloud(*carcass_, 4000037u, 0.004, &truth);
   Morpher one(*model_, carcass_->annotations, Upright(), {.threads = 1, .worker_wrapper = {}});
   Morpher two(*model_, carcass_->annotations, Upright(), {.threads = 2, .worker_wrapper = {}});
   Morpher three(*model_, carcass_->annotations, Upright(), {.threads = 3, .worker_wrapper = {}});
@@ -69,7 +57,7 @@ TEST_F(MorpherTest, MorphsTheSameOnOneThreadAsOnSeveral) {
 // while its threads were solving, and the Morpher goes on to the next carcass.
 TEST_F(MorpherTest, ACancelledMorphSaysSoAndTheNextRuns) {
   perception::PosedCarcass truth;
-  const Eigen::Matrix3Xd cloud = HangingCloud(*carcass_, 4000037u, &truth);
+  const Eigen::Matrix3Xd cloud = test::HangingCloud(*carcass_, 4000037u, 0.004, &truth);
   Morpher morpher(*model_, carcass_->annotations, Upright());
   std::atomic<bool> cancel{true};
   MorphDeadline deadline;

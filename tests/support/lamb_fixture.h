@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <memory>
 
 #include "morph/template_model.h"
@@ -24,5 +25,22 @@ class LambTemplateTest : public ::testing::Test {
   static inline std::unique_ptr<perception::CarcassTemplate> carcass_;
   static inline std::unique_ptr<morph::TemplateModel> model_;
 };
+
+/// A carcass hanging upright as on the line (+z up, as the template), posed from @p seed and
+/// seen by a ring of cameras: a partial cloud (missing regions), noise @p sigma_m metres
+/// along the normals. @p truth (optional) receives the posed carcass.
+inline Eigen::Matrix3Xd HangingCloud(const perception::CarcassTemplate& carcass, std::uint64_t seed,
+                                     double sigma_m, perception::PosedCarcass* truth = nullptr) {
+  perception::PoseOptions pose;
+  pose.arbitrary_orientation = false;
+  perception::PosedCarcass posed =
+      perception::PoseCarcass(carcass, perception::SampleCarcassPose(seed, pose));
+  perception::CloudOptions cloud;
+  cloud.sigma_m = sigma_m;
+  cloud.missing_regions = true;
+  Eigen::Matrix3Xd points = perception::SampleSurfaceCloud(posed, cloud, seed + 1).points;
+  if (truth != nullptr) *truth = std::move(posed);
+  return points;
+}
 
 }  // namespace vb::test
