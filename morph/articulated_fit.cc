@@ -79,9 +79,12 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
                                       const PointIndex& target_index,
                                       const Eigen::Matrix3Xd& target_terminals,
                                       const DeformationState& start,
-                                      const ArticulationOptions& options) {
+                                      const ArticulationOptions& options,
+                                      const Similarity& placement) {
   const auto begin = std::chrono::steady_clock::now();
   VB_DEMAND(target.cols() > 0 && target_index.size() == target.cols());
+  VB_DEMAND(std::isfinite(placement.scale) && placement.scale > 0);
+  const Similarity back = placement.Inverse();  // target frame -> template frame
   ArticulationResult result;
   result.state = start;
 
@@ -101,11 +104,11 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
   const std::vector<int> target_ids = Spread(target.cols(), options.target_samples);
   Eigen::Matrix3Xd target_samples(3, static_cast<Eigen::Index>(target_ids.size()));
   for (std::size_t k = 0; k < target_ids.size(); ++k)
-    target_samples.col(static_cast<Eigen::Index>(k)) = target.col(target_ids[k]);
+    target_samples.col(static_cast<Eigen::Index>(k)) = back(target.col(target_ids[k]));
 
   std::vector<PointConstraint> constraints;
   std::vector<double> forward(static_cast<std::size_t>(ns));
-  std::vector<int> forward_partner(static_cast<std::size_t>(ns));
+  Eigen::Matrix3Xd forward_partner(3, ns);  // template frame
   std::vector<double> backward(target_ids.size());
   std::vector<int> backward_partner(target_ids.size());
   double stiffness = options.stiffness_start;
@@ -113,9 +116,8 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
     const Eigen::Matrix3Xd posed = DeformPoints(model.graph, weights, rest, result.state);
     const PointIndex posed_index(posed);
     for (Eigen::Index i = 0; i < ns; ++i) {
-      const int j = target_index.Nearest(posed.col(i));
-      forward_partner[static_cast<std::size_t>(i)] = j;
-      forward[static_cast<std::size_t>(i)] = (target.col(j) - posed.col(i)).norm();
+      forward_partner.col(i) = back(target.col(target_index.Nearest(placement(posed.col(i)))));
+      forward[static_cast<std::size_t>(i)] = (forward_partner.col(i) - posed.col(i)).norm();
     }
     for (Eigen::Index k = 0; k < target_samples.cols(); ++k) {
       const int i = posed_index.Nearest(target_samples.col(k));
@@ -127,8 +129,7 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
     constraints.clear();
     for (Eigen::Index i = 0; i < ns; ++i) {
       if (forward[static_cast<std::size_t>(i)] > forward_limit) continue;
-      constraints.push_back(ConstrainPoint(weights, i, rest.col(i),
-                                           target.col(forward_partner[static_cast<std::size_t>(i)])));
+      constraints.push_back(ConstrainPoint(weights, i, rest.col(i), forward_partner.col(i)));
     }
     for (Eigen::Index k = 0; k < target_samples.cols(); ++k) {
       if (backward[static_cast<std::size_t>(k)] > backward_limit) continue;
@@ -163,9 +164,15 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
     stiffness = std::max(options.min_stiffness, stiffness * options.stiffness_decay);
   }
   const Eigen::Matrix3Xd posed = DeformPoints(model.graph, weights, rest, result.state);
-  const PointIndex posed_index(posed);
-  result.disagreement =
-      TrimmedDisagreement(posed, posed_index, target_samples, target_index, options.keep_fraction);
+  // Measured in the target's frame, against its own index, and brought back to template sizes.
+  Eigen::Matrix3Xd posed_there(3, ns), samples_there(3, target_samples.cols());
+  for (Eigen::Index i = 0; i < ns; ++i) posed_there.col(i) = placement(posed.col(i));
+  for (std::size_t k = 0; k < target_ids.size(); ++k)
+    samples_there.col(static_cast<Eigen::Index>(k)) = target.col(target_ids[k]);
+  const PointIndex posed_there_index(posed_there);
+  result.disagreement = TrimmedDisagreement(posed_there, posed_there_index, samples_there,
+                                            target_index, options.keep_fraction) /
+                        placement.scale;
   const Eigen::Matrix4d T = Eigen::umeyama(rest, posed, true);
   const Eigen::Matrix3Xd rigid = (T.topLeftCorner<3, 3>() * rest).colwise() + T.topRightCorner<3, 1>();
   result.bend = (posed - rigid).colwise().norm().mean();

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "morph/embedded_deformation.h"
+#include "morph/feature_association.h"
 #include "morph/point_index.h"
 #include "morph/template_model.h"
 
@@ -80,19 +81,23 @@ double TrimmedDisagreement(const Eigen::Matrix3Xd& a, const PointIndex& a_index,
                            const Eigen::Matrix3Xd& b_samples, const PointIndex& b_index,
                            double keep_fraction);
 
-/// Non-rigid closest-point fitting of the template's posture to a target already placed in
-/// the template's normalised frame: each round pairs template samples with their nearest
-/// target points and target samples with their nearest template samples, keeps the nearest
-/// pairs of each side, and solves the embedded deformation (eqs. 4-10) with them as point
-/// constraints, starting from @p start.
-/// @param[in] target 3 by N points in the template's normalised frame; @p target_index
-/// indexes them.
-/// @param[in] target_terminals 3 by T limb ends of the target's skeleton in the same frame
-/// (may be empty).
+/// Non-rigid closest-point fitting of the template's posture to a placed target: each round
+/// pairs template samples with their nearest target points and target samples with their
+/// nearest template samples, keeps the nearest pairs of each side, and solves the embedded
+/// deformation (eqs. 4-10) with them as point constraints, starting from @p start. The fit
+/// is in the template's normalised frame; the target stays in its own, so one kd-tree of it
+/// serves every placement tried.
+/// @param[in] target 3 by N points in the target's frame; @p target_index indexes them.
+/// @param placement the template's normalised frame -> the target's (a similarity, so
+///   nearest points are the same in either frame); identity: the target is already in the
+///   template's frame.
+/// @param[in] target_terminals 3 by T limb ends of the target's skeleton in the template's
+/// normalised frame (may be empty).
 ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::Matrix3Xd& target,
                                       const PointIndex& target_index,
                                       const Eigen::Matrix3Xd& target_terminals,
                                       const DeformationState& start,
-                                      const ArticulationOptions& options);
+                                      const ArticulationOptions& options,
+                                      const Similarity& placement = {});
 
 }  // namespace vb::morph

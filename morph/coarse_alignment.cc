@@ -264,13 +264,12 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     // The fits are independent: each on one of the pool's threads.
     const auto fit_candidate = [&](int p) {
       const std::size_t k = picked[static_cast<std::size_t>(p)];
-      const Similarity back = candidates[k].from_to.Inverse();
-      const Eigen::Matrix3Xd placed = Apply(back, target);
-      const PointIndex placed_index(placed);
+      const Similarity& placement = candidates[k].from_to;
       ArticulationResult fit =
-          ArticulateTemplate(model, placed, placed_index,
-                             Apply(back, result.target_features.terminals),
-                             DeformationState::Identity(model.graph.num_nodes()), choice);
+          ArticulateTemplate(model, target, target_index,
+                             Apply(placement.Inverse(), result.target_features.terminals),
+                             DeformationState::Identity(model.graph.num_nodes()), choice,
+                             placement);
       if (!fit.ok) return;
       articulated[k] = fit.disagreement;
       articulated_states[k] = std::move(fit.state);
@@ -343,8 +342,6 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   if (use_articulated && result.association.ok) {
     // Go on from the chosen candidate's pose for the remaining rounds.
     phase = std::chrono::steady_clock::now();
-    const Eigen::Matrix3Xd placed = Apply(to_template, target);
-    const PointIndex placed_index(placed);
     ArticulationOptions rest = options.articulation;
     rest.rounds = std::max(0, options.articulation.rounds - options.choice_rounds);
     rest.stiffness_start = std::max(
@@ -352,9 +349,9 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
         options.articulation.stiffness_start *
             std::pow(options.articulation.stiffness_decay, options.choice_rounds));
     ArticulationResult fit =
-        ArticulateTemplate(model, placed, placed_index,
+        ArticulateTemplate(model, target, target_index,
                            Apply(to_template, result.target_features.terminals),
-                           articulated_states[chosen], rest);
+                           articulated_states[chosen], rest, to_target);
     result.state = std::move(fit.state);
     result.disagreement = fit.disagreement;
     result.deformation.usable = true;

@@ -77,6 +77,29 @@ TEST_F(ArticulateTemplateTest, TurnsTheLimbsIntoTheTargetsPose) {
   }
 }
 
+TEST_F(ArticulateTemplateTest, FitsATargetLeftInItsOwnFrameAsOneBroughtIntoTheTemplates) {
+  // The same target handed over in the template's frame, or in a frame 2.5 times larger,
+  // turned and moved, with the similarity between them: the same fit, up to rounding.
+  const Case c = Posed(1000003u);
+  const Similarity placement{
+      2.5, Eigen::AngleAxisd(1.1, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix(),
+      Eigen::Vector3d(0.4, -3.0, 1.5)};
+  Eigen::Matrix3Xd there(3, c.truth.cols());
+  for (Eigen::Index i = 0; i < there.cols(); ++i) there.col(i) = placement(c.truth.col(i));
+  const PointIndex here_index(c.truth), there_index(there);
+  ArticulationOptions options;
+  options.rounds = 2;
+  const DeformationState identity = DeformationState::Identity(model_->graph.num_nodes());
+  const ArticulationResult here =
+      ArticulateTemplate(*model_, c.truth, here_index, Eigen::Matrix3Xd(3, 0), identity, options);
+  const ArticulationResult moved = ArticulateTemplate(
+      *model_, there, there_index, Eigen::Matrix3Xd(3, 0), identity, options, placement);
+  ASSERT_TRUE(here.ok && moved.ok);
+  EXPECT_NEAR(moved.disagreement, here.disagreement, 1e-9);
+  EXPECT_LT(Error(moved.state, c.truth), 0.7 * c.rigid_error);  // it fitted: measured 0.54
+  EXPECT_NEAR(Error(moved.state, c.truth), Error(here.state, c.truth), 1e-6);
+}
+
 TEST_F(ArticulateTemplateTest, APartTheTargetLacksFollowsItsNeighbours) {
   // A camera shadow: the target loses everything beyond 75 % of its extent along x.
   const Case c = Posed(1000004u);

@@ -64,6 +64,22 @@ for key in '"leg_loin"' '"loin_rack"' '"rack_shoulder"' '"confidence"' '"volume"
   grep -q -- "$key" "$work/c.json" 2>/dev/null || { echo "FAIL: cuts JSON lacks $key"; failures=$((failures + 1)); }
 done
 grep -q '"rounds"' "$work/fr.json" 2>/dev/null || { echo "FAIL: report lacks the dense rounds"; failures=$((failures + 1)); }
+# The morph's threads change its speed, not its result: one and two threads write the same
+# mesh and cuts, byte for byte (MorpherTest checks the same in-process).
+for threads in 1 2; do
+  check "morph --threads $threads" 0 "part shoulder" \
+    "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_001_cloud.ply" \
+    --out "$work/t$threads.ply" --stage full --annotations "$work/set/template_annotations.yaml" \
+    --cuts "$work/t$threads.json" --threads "$threads"
+done
+for ext in ply json; do
+  cmp -s "$work/t1.$ext" "$work/t2.$ext" ||
+    { echo "FAIL: morph on 1 and 2 threads wrote different .$ext files"; failures=$((failures + 1)); }
+done
+check "morph refuses 0 threads" 2 "--threads: Value 0 not in range" \
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/x.ply" --threads 0
+check "bench shapes refuses 17 threads" 2 "--threads: Value 17 not in range" \
+  "$vbutcher" bench shapes --threads 17 --csv "$work/x.csv"
 # A scan whose normals are all zero length (as the real lamb scan's are): they are dropped with
 # a warning naming the file, estimated, and the full morph runs and reports its fit.
 /usr/bin/python3 - "$work/set/target_001_cloud.ply" "$work/zero_normals.ply" <<'PY'
