@@ -83,7 +83,7 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
                                       const Similarity& placement) {
   const auto begin = std::chrono::steady_clock::now();
   VB_DEMAND(target.cols() > 0 && target_index.size() == target.cols());
-  VB_DEMAND(std::isfinite(placement.scale) && placement.scale > 0);
+  VB_DEMAND(placement.Usable());
   const Similarity back = placement.Inverse();  // target frame -> template frame
   ArticulationResult result;
   result.state = start;
@@ -105,6 +105,10 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
   Eigen::Matrix3Xd target_samples(3, static_cast<Eigen::Index>(target_ids.size()));
   for (std::size_t k = 0; k < target_ids.size(); ++k)
     target_samples.col(static_cast<Eigen::Index>(k)) = back(target.col(target_ids[k]));
+
+  Eigen::Matrix3Xd terminals(3, target_terminals.cols());  // template frame
+  for (Eigen::Index t = 0; t < terminals.cols(); ++t)
+    terminals.col(t) = back(target_terminals.col(t));
 
   std::vector<PointConstraint> constraints;
   std::vector<double> forward(static_cast<std::size_t>(ns));
@@ -141,12 +145,12 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
         static_cast<double>(model.graph.num_nodes()) / static_cast<double>(constraints.size());
     for (PointConstraint& c : constraints) c.weight = per_pair;
     if (options.terminal_radius > 0 && options.terminal_weight > 0 &&
-        target_terminals.cols() > 0 && model.features.num_terminals() > 0) {
+        terminals.cols() > 0 && model.features.num_terminals() > 0) {
       const Eigen::Matrix3Xd tips = DeformPoints(model.graph, model.terminal_weights,
                                                  model.features.terminals, result.state);
-      for (const auto& [i, j] : MutualNearestPairs(tips, target_terminals, options.terminal_radius)) {
+      for (const auto& [i, j] : MutualNearestPairs(tips, terminals, options.terminal_radius)) {
         PointConstraint c = ConstrainPoint(model.terminal_weights, i, model.features.terminals.col(i),
-                                           target_terminals.col(j));
+                                           terminals.col(j));
         c.weight = per_pair * options.terminal_weight;
         constraints.push_back(std::move(c));
       }

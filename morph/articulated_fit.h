@@ -88,16 +88,17 @@ double TrimmedDisagreement(const Eigen::Matrix3Xd& a, const PointIndex& a_index,
 /// is in the template's normalised frame; the target stays in its own, so one kd-tree of it
 /// serves every placement tried.
 /// @param[in] target 3 by N points in the target's frame; @p target_index indexes them.
-/// @param placement the template's normalised frame -> the target's (a similarity, so
-///   nearest points are the same in either frame); identity: the target is already in the
-///   template's frame.
-/// @param[in] target_terminals 3 by T limb ends of the target's skeleton in the template's
-/// normalised frame (may be empty).
+/// @param[in] target_terminals 3 by T limb ends of the target's skeleton, in the target's
+///   frame (may be empty).
+/// @param[in] placement the template's normalised frame -> the target's. A similarity keeps
+///   nearest points nearest, so the fit is the same as on a target moved into the template's
+///   frame. Pass `Similarity{}` for a target already there.
+/// @pre `placement.Usable()` and `placement.R` is a rotation.
 ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::Matrix3Xd& target,
                                       const PointIndex& target_index,
                                       const Eigen::Matrix3Xd& target_terminals,
                                       const DeformationState& start,
                                       const ArticulationOptions& options,
-                                      const Similarity& placement = {});
+                                      const Similarity& placement);
 
 }  // namespace vb::morph

@@ -75,12 +75,6 @@ Eigen::Matrix3Xd Apply(const Similarity& fit, const Eigen::Matrix3Xd& points) {
   return out;
 }
 
-// A fit a placement can be built on: degenerate targets (all points in one spot) give a zero
-// or non-finite scale.
-bool Usable(const Similarity& fit) {
-  return std::isfinite(fit.scale) && fit.scale > 0 && fit.R.allFinite() && fit.t.allFinite();
-}
-
 // Similarities laying the principal axes of @p from on those of @p to, one per proper
 // rotation of the cube (the axes' order and signs are not telling for a bent shape), scaled
 // by the ratio of the spreads.
@@ -181,6 +175,8 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   }
   std::vector<Association> candidates =
       AssociateFeatureNodes(model.features, result.target_features, association);
+  // A pairing whose nodes all lie in one spot has no usable fit to place the template with.
+  std::erase_if(candidates, [](const Association& a) { return !a.from_to.Usable(); });
   const std::size_t skeleton_candidates = candidates.size();
   const Eigen::Matrix3Xd template_samples = EveryNth(model.V, options.verification_samples);
   const Eigen::Matrix3Xd target_samples = EveryNth(target, options.verification_samples);
@@ -206,7 +202,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
       const std::size_t k = order[r];
       const Similarity refined = RefineSimilarity(template_samples, target_index, target,
                                                   candidates[k].from_to, options.refine_iterations);
-      if (!Usable(refined) || !association.AcceptsOrientation(refined.R)) continue;
+      if (!refined.Usable() || !association.AcceptsOrientation(refined.R)) continue;
       const double d =
           SurfaceDisagreement(template_samples, target_samples, target_index, target, refined);
       if (d < disagreements[k]) {
@@ -230,7 +226,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
       }
       candidate.from_to = RefineSimilarity(template_samples, target_index, target, start,
                                            options.refine_iterations);
-      if (!Usable(candidate.from_to) || !association.AcceptsOrientation(candidate.from_to.R))
+      if (!candidate.from_to.Usable() || !association.AcceptsOrientation(candidate.from_to.R))
         continue;
       disagreements.push_back(SurfaceDisagreement(template_samples, target_samples, target_index,
                                                   target, candidate.from_to));
@@ -264,12 +260,10 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     // The fits are independent: each on one of the pool's threads.
     const auto fit_candidate = [&](int p) {
       const std::size_t k = picked[static_cast<std::size_t>(p)];
-      const Similarity& placement = candidates[k].from_to;
       ArticulationResult fit =
-          ArticulateTemplate(model, target, target_index,
-                             Apply(placement.Inverse(), result.target_features.terminals),
+          ArticulateTemplate(model, target, target_index, result.target_features.terminals,
                              DeformationState::Identity(model.graph.num_nodes()), choice,
-                             placement);
+                             candidates[k].from_to);
       if (!fit.ok) return;
       articulated[k] = fit.disagreement;
       articulated_states[k] = std::move(fit.state);
@@ -349,8 +343,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
         options.articulation.stiffness_start *
             std::pow(options.articulation.stiffness_decay, options.choice_rounds));
     ArticulationResult fit =
-        ArticulateTemplate(model, target, target_index,
-                           Apply(to_template, result.target_features.terminals),
+        ArticulateTemplate(model, target, target_index, result.target_features.terminals,
                            articulated_states[chosen], rest, to_target);
     result.state = std::move(fit.state);
     result.disagreement = fit.disagreement;

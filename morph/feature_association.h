@@ -2,6 +2,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/SVD>
+#include <cmath>
 #include <utility>
 #include <vector>
 
@@ -19,6 +20,11 @@ struct Similarity {
   /// From the 4x4 result of Eigen::umeyama with scaling.
   static Similarity FromUmeyama(const Eigen::Matrix4d& T);
   Similarity Inverse() const { return {1.0 / scale, R.transpose(), -(R.transpose() * t) / scale}; }
+  /// Whether a placement can be built on it: a positive finite scale and finite R and t
+  /// (degenerate point sets, all in one spot, give a zero or non-finite scale).
+  bool Usable() const {
+    return std::isfinite(scale) && scale > 0 && R.allFinite() && t.allFinite();
+  }
 };
 
 /// The rotation R maximising trace(R^T M) for a 3x3 correlation M = sum_i w_i b_i a_i^T (so R
