@@ -101,10 +101,13 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
     weights.nodes.col(k) = model.vertex_weights.nodes.col(v);
     weights.weights.col(k) = model.vertex_weights.weights.col(v);
   }
+  // The target samples in the target's frame (for the final disagreement) and in the
+  // template's (for the fit).
   const std::vector<int> target_ids = Spread(target.cols(), options.target_samples);
-  Eigen::Matrix3Xd target_samples(3, static_cast<Eigen::Index>(target_ids.size()));
-  for (std::size_t k = 0; k < target_ids.size(); ++k)
-    target_samples.col(static_cast<Eigen::Index>(k)) = back(target.col(target_ids[k]));
+  const Eigen::Matrix3Xd samples_there = target(Eigen::all, target_ids);
+  Eigen::Matrix3Xd target_samples(3, samples_there.cols());
+  for (Eigen::Index k = 0; k < samples_there.cols(); ++k)
+    target_samples.col(k) = back(samples_there.col(k));
 
   Eigen::Matrix3Xd terminals(3, target_terminals.cols());  // template frame
   for (Eigen::Index t = 0; t < terminals.cols(); ++t)
@@ -169,10 +172,8 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
   }
   const Eigen::Matrix3Xd posed = DeformPoints(model.graph, weights, rest, result.state);
   // Measured in the target's frame, against its own index, and brought back to template sizes.
-  Eigen::Matrix3Xd posed_there(3, ns), samples_there(3, target_samples.cols());
+  Eigen::Matrix3Xd posed_there(3, ns);
   for (Eigen::Index i = 0; i < ns; ++i) posed_there.col(i) = placement(posed.col(i));
-  for (std::size_t k = 0; k < target_ids.size(); ++k)
-    samples_there.col(static_cast<Eigen::Index>(k)) = target.col(target_ids[k]);
   const PointIndex posed_there_index(posed_there);
   result.disagreement = TrimmedDisagreement(posed_there, posed_there_index, samples_there,
                                             target_index, options.keep_fraction) /

@@ -29,6 +29,13 @@ int main(int argc, char** argv) {
       "work did not succeed (capture: no frame set; morph: the target could not be morphed; "
       "lcm-listen: messages missing, invalid or malformed).");
 
+  // --threads, as the morph's commands take it: the threads one morph runs on.
+  const auto add_threads = [](CLI::App* command, int& threads, const std::string& help) {
+    command->add_option("--threads", threads, help)
+        ->check(CLI::Range(1, vb::morph::WorkerPool::kMaxThreads))
+        ->capture_default_str();
+  };
+
   // Limits on the mesh and cloud files read (io/read_limits.h), raised for offline work on
   // large scans: vbutcher --max-points 20000000 morph ...
   vb::io::ReadLimits limits;
@@ -81,9 +88,7 @@ int main(int argc, char** argv) {
   morph_cmd->add_option("--out", morph.out_path, "Deformed template (.ply, .off, .obj)")
       ->required();
   morph_cmd->add_option("--stage", morph.stage, "coarse | full")->capture_default_str();
-  morph_cmd->add_option("--threads", morph.threads, "Threads the morph runs on")
-      ->check(CLI::Range(1, vb::morph::WorkerPool::kMaxThreads))
-      ->capture_default_str();
+  add_threads(morph_cmd, morph.threads, "Threads the morph runs on");
   morph_cmd->add_option("--report", morph.report_path,
                         "JSON report of timings, features, association, solver");
   morph_cmd->add_option("--annotations", morph.annotations_path,
@@ -164,9 +169,7 @@ int main(int argc, char** argv) {
   bench_cmd->add_flag("--start-from-truth", bench.start_from_truth,
                       "Full stage: start the dense stage from node transforms fitted to the true "
                       "surface (what the dense stage's own energy does to a right answer)");
-  bench_cmd->add_option("--threads", bench.threads, "Full stage: threads a morph runs on")
-      ->check(CLI::Range(1, vb::morph::WorkerPool::kMaxThreads))
-      ->capture_default_str();
+  add_threads(bench_cmd, bench.threads, "Full stage: threads a morph runs on");
   bench_cmd->add_option("--csv", bench.csv, "One row per morph (default bench_<stage>.csv)");
 
   vb::tools::VirtualRigCommandOptions virtual_rig;
@@ -281,9 +284,7 @@ int main(int argc, char** argv) {
   shape_bench_cmd->add_option("--points", shape_bench.points, "Points sampled over each target's surface")
       ->capture_default_str();
   shape_bench_cmd->add_option("--seed", shape_bench.seed, "Seed of noise and placement")->capture_default_str();
-  shape_bench_cmd->add_option("--threads", shape_bench.threads, "Threads a morph runs on")
-      ->check(CLI::Range(1, vb::morph::WorkerPool::kMaxThreads))
-      ->capture_default_str();
+  add_threads(shape_bench_cmd, shape_bench.threads, "Threads a morph runs on");
   shape_bench_cmd->add_option("--wrap-alpha", shape_bench.wrap_alpha,
                               "Alpha wrap of the third-party models: alpha, of their diagonal")
       ->capture_default_str();
