@@ -183,11 +183,14 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   const PointIndex target_index(target);
   // Every skeleton candidate already keeps within the upright prior's tilt (the search drops
   // the others); refined fits and frame candidates are checked below.
-  std::vector<double> disagreements;
-  for (const Association& candidate : candidates) {
-    disagreements.push_back(SurfaceDisagreement(template_samples, target_samples, target_index,
-                                                target, candidate.from_to));
-  }
+  // Scoring and refining are independent per placement: each on one of the pool's threads,
+  // each writing only its own entry.
+  std::vector<double> disagreements(candidates.size());
+  ForEach(pool, static_cast<int>(candidates.size()), [&](int k) {
+    disagreements[static_cast<std::size_t>(k)] =
+        SurfaceDisagreement(template_samples, target_samples, target_index, target,
+                            candidates[static_cast<std::size_t>(k)].from_to);
+  });
   // The skeleton fits are only as good as the skeletons: the best few placements are
   // refined against the surfaces before the final choice (docs/decisions.md: placed clouds
   // at sigma 16 mm 87 -> 97 %).
@@ -198,38 +201,47 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
               [&](std::size_t a, std::size_t b) { return disagreements[a] < disagreements[b]; });
     const std::size_t count =
         std::min(order.size(), static_cast<std::size_t>(std::max(0, options.refine_candidates)));
-    for (std::size_t r = 0; r < count; ++r) {
-      const std::size_t k = order[r];
+    ForEach(pool, static_cast<int>(count), [&](int r) {
+      const std::size_t k = order[static_cast<std::size_t>(r)];
       const Similarity refined = RefineSimilarity(template_samples, target_index, target,
                                                   candidates[k].from_to, options.refine_iterations);
-      if (!refined.Usable() || !association.AcceptsOrientation(refined.R)) continue;
+      if (!refined.Usable() || !association.AcceptsOrientation(refined.R)) return;
       const double d =
           SurfaceDisagreement(template_samples, target_samples, target_index, target, refined);
       if (d < disagreements[k]) {
         candidates[k].from_to = refined;
         disagreements[k] = d;
       }
-    }
+    });
   }
   // Placements that do not come from the skeletons: the template's principal axes laid on
   // the target's in each of the 24 ways a proper rotation can, then refined the same way.
   // When the skeletons disagree too much for any pairing to be right (a shape with many
   // alike limbs, a limb lost to occlusion), one of these is.
   if (options.frame_candidates && options.refine_iterations > 0) {
-    for (const Similarity& start : PrincipalFrameCandidates(template_samples, target_samples)) {
-      if (!association.AcceptsOrientation(start.R)) continue;
+    std::vector<Similarity> starts = PrincipalFrameCandidates(template_samples, target_samples);
+    std::erase_if(starts,
+                  [&](const Similarity& s) { return !association.AcceptsOrientation(s.R); });
+    std::vector<Similarity> refined(starts.size());
+    std::vector<double> refined_disagreement(starts.size());
+    ForEach(pool, static_cast<int>(starts.size()), [&](int f) {
+      const auto k = static_cast<std::size_t>(f);
+      refined[k] = RefineSimilarity(template_samples, target_index, target, starts[k],
+                                    options.refine_iterations);
+      if (!refined[k].Usable() || !association.AcceptsOrientation(refined[k].R)) return;
+      refined_disagreement[k] =
+          SurfaceDisagreement(template_samples, target_samples, target_index, target, refined[k]);
+    });
+    for (std::size_t k = 0; k < starts.size(); ++k) {
+      if (!refined[k].Usable() || !association.AcceptsOrientation(refined[k].R)) continue;
       Association candidate;
       candidate.ok = true;
       if (skeleton_candidates > 0) {  // the search's counts, for the report
         candidate.candidates = candidates.front().candidates;
         candidate.pruned = candidates.front().pruned;
       }
-      candidate.from_to = RefineSimilarity(template_samples, target_index, target, start,
-                                           options.refine_iterations);
-      if (!candidate.from_to.Usable() || !association.AcceptsOrientation(candidate.from_to.R))
-        continue;
-      disagreements.push_back(SurfaceDisagreement(template_samples, target_samples, target_index,
-                                                  target, candidate.from_to));
+      candidate.from_to = refined[k];
+      disagreements.push_back(refined_disagreement[k]);
       candidates.push_back(std::move(candidate));
     }
   }

@@ -97,8 +97,8 @@ struct CoarseResult {
 /// Section II-A: skeleton of the target cloud, feature association (eq. 3) and embedded
 /// deformation of the template (eqs. 4-10) so its posture matches the target's.
 /// @param[in] target 3 by N points (a cloud, or a mesh's vertices).
-/// @param pool when given, the candidate placements' posture fits share its threads; the
-///   result is the same on any number of threads.
+/// @param pool when given, the candidate placements' scoring, rigid refinement and posture
+///   fits share its threads; the result is the same on any number of threads.
 CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target,
                          const CoarseOptions& options = {}, WorkerPool* pool = nullptr);
 

@@ -20,8 +20,9 @@ MorphOptions Upright() {
   return options;
 }
 
-// The threads share the candidates' posture fits and the dense stage's two association
-// ways; each writes only its own results, so the morph is the same to the last bit.
+// The threads share the placements' scoring, rigid refinement and posture fits and the dense
+// stage's two association ways; each writes only its own results, so the morph is the same
+// to the last bit.
 TEST_F(MorpherTest, MorphsTheSameOnOneThreadAsOnSeveral) {
   perception::PosedCarcass truth;
   const Eigen::Matrix3Xd cloud = test::HangingCloud(*carcass_, 4000037u, 0.004, &truth);
