@@ -292,6 +292,13 @@ int RunShapeBench(const ShapeBenchOptions& options) {
     throw InputError("bench shapes: --shadow-fraction must lie in (0, 1)");
   }
   if (options.variants.empty()) throw InputError("bench shapes: --variants: none given");
+  morph::TemplateModelOptions model_options;
+  if (options.template_features == "mcf") {
+    model_options.feature_source = morph::TemplateModelOptions::FeatureSource::kMeanCurvatureFlow;
+  } else if (options.template_features != "levelset") {
+    throw InputError("bench shapes: --template-features: '" + options.template_features +
+                     "' is neither levelset nor mcf");
+  }
   if (options.sigmas_mm.empty()) throw InputError("bench shapes: --sigmas-mm: none given");
   for (double sigma : options.sigmas_mm) {
     if (!(sigma >= 0 && sigma <= 100)) {
@@ -331,13 +338,16 @@ int RunShapeBench(const ShapeBenchOptions& options) {
   for (const BenchCase& c : cases) {
     morph::TemplateModel model;
     try {
-      model = morph::BuildTemplateModel(c.template_mesh);
+      model = morph::BuildTemplateModel(c.template_mesh, model_options);
     } catch (const std::exception& e) {  // InputError, or CGAL's own
       std::fprintf(stderr, "shape %s: no template model: %s\n", c.name.c_str(), e.what());
       any_failed = true;
       done += static_cast<int>(c.targets.size() * options.sigmas_mm.size() * options.variants.size());
       continue;
     }
+    std::fprintf(stderr, "shape %s: template model (%s skeleton): %d terminals, %d junctions (%.1f s)\n",
+                 c.name.c_str(), options.template_features.c_str(), model.features.num_terminals(),
+                 model.features.num_junctions(), model.seconds);
     if (!options.export_dir.empty()) {
       io::WriteMesh(options.export_dir / (c.name + "_template.ply"), c.template_mesh);
       for (std::size_t k = 0; k < c.source_labels.size(); ++k) {

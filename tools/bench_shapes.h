@@ -35,6 +35,9 @@ struct ShapeBenchOptions {
   /// CGAL alpha wrap of the third-party models, fractions of their bounding-box diagonal.
   double wrap_alpha = WrapOptions{}.alpha;
   double wrap_offset = WrapOptions{}.offset;
+  /// Every template's skeleton: "levelset", the one the targets get, or "mcf", the paper's
+  /// mean curvature flow skeleton (morph::TemplateModelOptions::FeatureSource).
+  std::string template_features = "levelset";
 };
 
 /// `vbutcher bench shapes`: the morph on third-party rigged and animated bodies posed by their

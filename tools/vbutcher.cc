@@ -291,6 +291,11 @@ int main(int argc, char** argv) {
   shape_bench_cmd->add_option("--wrap-offset", shape_bench.wrap_offset,
                               "Alpha wrap: offset, of their diagonal")
       ->capture_default_str();
+  shape_bench_cmd
+      ->add_option("--template-features", shape_bench.template_features,
+                   "Templates' skeleton: levelset (the default, as the targets') or mcf (the "
+                   "paper's)")
+      ->check(CLI::IsMember({"levelset", "mcf"}));
   shape_bench_cmd->add_option("--export", shape_bench.export_dir,
                               "Write templates and posed targets there as PLY");
 

@@ -2,7 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <memory>
+#include <random>
+#include <vector>
+
 #include "io/error.h"
+#include "morph/mcf_skeleton.h"
 #include "tests/support/implicit_shapes.h"
 #include "tests/support/test_meshes.h"
 
@@ -51,6 +56,29 @@ TEST(TemplateModelTest, NormalisesAndPrecomputesEverything) {
   for (Eigen::Index t = 0; t < 3; ++t)
     EXPECT_NEAR(m.terminal_weights.weights.col(t).sum(), 1.0, 1e-12);
   EXPECT_TRUE(m.mesh.has_normals());
+}
+
+// CGAL orders the edges it collapses by their addresses; the skeleton must not depend on
+// what the program allocated before it.
+TEST(TemplateModelTest, MeanCurvatureFlowSkeletonDoesNotDependOnTheHeap) {
+  const geometry::TriangleMesh mesh = test::CapsuleUnion({{{0, 0, 0}, {0, 0, 1}, 0.12},
+                                                          {{0, 0, 0.6}, {0.4, 0, 1.1}, 0.08},
+                                                          {{0, 0, 0.6}, {-0.4, 0.1, 1.1}, 0.08},
+                                                          {{0, 0, 0}, {0.3, 0, -0.5}, 0.09},
+                                                          {{0, 0, 0}, {-0.3, 0, -0.5}, 0.09}},
+                                                         0.03);
+  const SkeletonGraph first = MeanCurvatureFlowSkeleton(mesh);
+  // Blocks of many sizes, every other one freed: the heap's free lists now differ.
+  std::mt19937 random(7);
+  std::vector<std::unique_ptr<char[]>> blocks;
+  for (int i = 0; i < 20000; ++i) blocks.emplace_back(new char[16 + random() % 400]);
+  for (std::size_t i = 0; i < blocks.size(); i += 2) blocks[i].reset();
+  const SkeletonGraph second = MeanCurvatureFlowSkeleton(mesh);
+  ASSERT_GT(first.nodes.cols(), 10);
+  ASSERT_EQ(first.nodes.cols(), second.nodes.cols());
+  EXPECT_TRUE(first.nodes == second.nodes);
+  EXPECT_EQ(first.edges, second.edges);
+  EXPECT_EQ(first.support, second.support);
 }
 
 }  // namespace
