@@ -223,7 +223,9 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     std::erase_if(starts,
                   [&](const Similarity& s) { return !association.AcceptsOrientation(s.R); });
     std::vector<Similarity> refined(starts.size());
-    std::vector<double> refined_disagreement(starts.size());
+    // Infinite for a refined placement that is unusable or tilted past the prior: not kept.
+    std::vector<double> refined_disagreement(starts.size(),
+                                             std::numeric_limits<double>::infinity());
     ForEach(pool, static_cast<int>(starts.size()), [&](int f) {
       const auto k = static_cast<std::size_t>(f);
       refined[k] = RefineSimilarity(template_samples, target_index, target, starts[k],
@@ -233,7 +235,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
           SurfaceDisagreement(template_samples, target_samples, target_index, target, refined[k]);
     });
     for (std::size_t k = 0; k < starts.size(); ++k) {
-      if (!refined[k].Usable() || !association.AcceptsOrientation(refined[k].R)) continue;
+      if (std::isinf(refined_disagreement[k])) continue;
       Association candidate;
       candidate.ok = true;
       if (skeleton_candidates > 0) {  // the search's counts, for the report

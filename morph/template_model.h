@@ -13,9 +13,8 @@ struct TemplateModelOptions {
   /// Where the template's skeleton comes from: the same level-set skeleton the targets get
   /// (applied to the template's vertices), which places junctions and limb ends the same
   /// way on both sides; or its mean curvature flow skeleton, as in the paper (see
-  /// docs/method.md, "Skeletons"). CGAL's MCF result depends on heap addresses (it collapses
-  /// edges in the order of a std::set of handles), so a template model is computed once and
-  /// stored, not recomputed per run.
+  /// docs/method.md, "Skeletons"). Either is reproducible; a template model is still computed
+  /// once and stored, not recomputed per run.
   enum class FeatureSource { kLevelSet, kMeanCurvatureFlow };
   FeatureSource feature_source = FeatureSource::kLevelSet;
   /// Spur and junction thresholds. Shorter spurs than the targets' (CoarseOptions): the

@@ -1,5 +1,10 @@
 #include "perception/isotropic_remesh.h"
 
+// First: CGAL_ALLOCATOR is one type in every translation unit.
+// clang-format off
+#include "geometry/cgal_arena.h"
+// clang-format on
+
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/remesh.h>
 #include <CGAL/Surface_mesh.h>

@@ -2,6 +2,11 @@
 // slow to compile).
 #include "tools/shape_set/surface_wrap.h"
 
+// First: CGAL_ALLOCATOR is one type in every translation unit.
+// clang-format off
+#include "geometry/cgal_arena.h"
+// clang-format on
+
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>
 #include <CGAL/AABB_triangle_primitive.h>
