@@ -10,6 +10,13 @@
 
 namespace vb::morph {
 
+TemplateModelOptions::FeatureSource FeatureSourceNamed(const std::string& name,
+                                                       const std::string& where) {
+  if (name == "levelset") return TemplateModelOptions::FeatureSource::kLevelSet;
+  if (name == "mcf") return TemplateModelOptions::FeatureSource::kMeanCurvatureFlow;
+  throw InputError(where + ": '" + name + "' is neither 'levelset' nor 'mcf'");
+}
+
 TemplateModel BuildTemplateModel(const geometry::TriangleMesh& mesh,
                                  const TemplateModelOptions& options) {
   const auto start = std::chrono::steady_clock::now();

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <string>
 
 #include "geometry/triangle_mesh.h"
 #include "morph/deformation_graph.h"
@@ -46,6 +47,11 @@ struct TemplateModel {
 /// Builds the model. @throws InputError naming the defect when the mesh is not a closed,
 /// consistently oriented, connected 2-manifold, or its skeleton has fewer than three
 /// feature nodes.
+/// The feature source named @p name: "levelset" or "mcf".
+/// @throws InputError naming @p where (e.g. a command's option) and the value otherwise.
+TemplateModelOptions::FeatureSource FeatureSourceNamed(const std::string& name,
+                                                       const std::string& where);
+
 TemplateModel BuildTemplateModel(const geometry::TriangleMesh& mesh,
                                  const TemplateModelOptions& options = {});
 

@@ -179,12 +179,8 @@ int RunBenchCommand(const BenchOptions& given) {
 
   const perception::CarcassTemplate carcass = perception::BuildCarcassTemplate();
   morph::TemplateModelOptions model_options;
-  if (options.template_features == "mcf") {
-    model_options.feature_source = morph::TemplateModelOptions::FeatureSource::kMeanCurvatureFlow;
-  } else if (options.template_features != "levelset") {
-    throw InputError("bench: --template-features: '" + options.template_features +
-                     "' is neither 'mcf' nor 'levelset'");
-  }
+  model_options.feature_source =
+      morph::FeatureSourceNamed(options.template_features, "bench: --template-features");
   const morph::TemplateModel lamb = morph::BuildTemplateModel(carcass.mesh, model_options);
   const morph::CoarseOptions coarse;
   std::printf(

@@ -293,12 +293,8 @@ int RunShapeBench(const ShapeBenchOptions& options) {
   }
   if (options.variants.empty()) throw InputError("bench shapes: --variants: none given");
   morph::TemplateModelOptions model_options;
-  if (options.template_features == "mcf") {
-    model_options.feature_source = morph::TemplateModelOptions::FeatureSource::kMeanCurvatureFlow;
-  } else if (options.template_features != "levelset") {
-    throw InputError("bench shapes: --template-features: '" + options.template_features +
-                     "' is neither levelset nor mcf");
-  }
+  model_options.feature_source =
+      morph::FeatureSourceNamed(options.template_features, "bench shapes: --template-features");
   if (options.sigmas_mm.empty()) throw InputError("bench shapes: --sigmas-mm: none given");
   for (double sigma : options.sigmas_mm) {
     if (!(sigma >= 0 && sigma <= 100)) {

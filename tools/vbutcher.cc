@@ -293,8 +293,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   shape_bench_cmd
       ->add_option("--template-features", shape_bench.template_features,
-                   "Templates' skeleton: levelset (as the targets') or mcf (the "
-                   "paper's)")
+                   "Templates' skeleton: levelset (as the targets') or mcf (the paper's)")
       ->check(CLI::IsMember({"levelset", "mcf"}))
       ->capture_default_str();
   shape_bench_cmd->add_option("--export", shape_bench.export_dir,

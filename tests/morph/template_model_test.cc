@@ -43,6 +43,18 @@ TEST(TemplateModelTest, RefusesMeshesItCannotMorph) {
   ExpectRejected(test::Box(), "8 points");  // too few samples for any skeleton
 }
 
+TEST(TemplateModelTest, NamesItsFeatureSources) {
+  EXPECT_EQ(FeatureSourceNamed("levelset", "x"), TemplateModelOptions::FeatureSource::kLevelSet);
+  EXPECT_EQ(FeatureSourceNamed("mcf", "x"),
+            TemplateModelOptions::FeatureSource::kMeanCurvatureFlow);
+  try {
+    FeatureSourceNamed("MCF", "bench: --template-features");
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(), "bench: --template-features: 'MCF' is neither 'levelset' nor 'mcf'");
+  }
+}
+
 TEST(TemplateModelTest, NormalisesAndPrecomputesEverything) {
   geometry::TriangleMesh y = test::YShape();
   y.V = (y.V * 250.0).array() + 1000.0;  // any units, anywhere
