@@ -658,6 +658,12 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
           result.check.ambiguity, result.check.unexplained, result.check.stretch);
       text += numbers;
       if (!result.check.concern.empty()) text += ": " + result.check.concern;
+      if (const morph::CleaningSummary& c = result.cleaning; c.strays + c.detached > 0) {
+        std::snprintf(numbers, sizeof numbers,
+                      "; clutter left out: %d stray points, %d points in %d detached pieces",
+                      c.strays, c.detached, c.pieces_dropped);
+        text += numbers;
+      }
       text += "; cut confidence";
       for (const morph::TransferredCut& cut : result.cuts) {
         std::snprintf(numbers, sizeof numbers, " %.2f", cut.confidence);

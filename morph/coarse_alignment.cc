@@ -4,13 +4,14 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
-#include <cmath>
 #include <chrono>
+#include <cmath>
 #include <limits>
+#include <memory>
 #include <numbers>
 
-#include "io/error.h"
 #include "geometry/mesh_measures.h"
+#include "io/error.h"
 #include "morph/point_index.h"
 
 namespace vb::morph {
@@ -135,7 +136,8 @@ Eigen::Matrix3Xd EveryNth(const Eigen::Matrix3Xd& points, int wanted) {
 }  // namespace
 
 CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target,
-                         const CoarseOptions& options, WorkerPool* pool) {
+                         const CoarseOptions& options, WorkerPool* pool,
+                         const PointIndex* given_index) {
   const auto start = std::chrono::steady_clock::now();
   CoarseResult result;
   if (target.cols() < 50) {
@@ -180,7 +182,10 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   const std::size_t skeleton_candidates = candidates.size();
   const Eigen::Matrix3Xd template_samples = EveryNth(model.V, options.verification_samples);
   const Eigen::Matrix3Xd target_samples = EveryNth(target, options.verification_samples);
-  const PointIndex target_index(target);
+  VB_DEMAND(given_index == nullptr || given_index->size() == target.cols());
+  std::unique_ptr<PointIndex> own_index;
+  if (given_index == nullptr) own_index = std::make_unique<PointIndex>(target);
+  const PointIndex& target_index = given_index != nullptr ? *given_index : *own_index;
   // Every skeleton candidate already keeps within the upright prior's tilt (the search drops
   // the others); refined fits and frame candidates are checked below.
   // Scoring and refining are independent per placement: each on one of the pool's threads,

@@ -8,6 +8,7 @@
 #include "morph/cloud_skeleton.h"
 #include "morph/embedded_deformation.h"
 #include "morph/feature_association.h"
+#include "morph/point_index.h"
 #include "morph/skeleton_graph.h"
 #include "morph/template_model.h"
 #include "morph/worker_pool.h"
@@ -99,7 +100,9 @@ struct CoarseResult {
 /// @param[in] target 3 by N points (a cloud, or a mesh's vertices).
 /// @param pool when given, the candidate placements' scoring, rigid refinement and posture
 ///   fits share its threads; the result is the same on any number of threads.
+/// @param target_index a kd-tree over @p target the caller already has (none: one is built).
 CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target,
-                         const CoarseOptions& options = {}, WorkerPool* pool = nullptr);
+                         const CoarseOptions& options = {}, WorkerPool* pool = nullptr,
+                         const PointIndex* target_index = nullptr);
 
 }  // namespace vb::morph

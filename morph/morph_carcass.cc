@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <exception>
+#include <memory>
 #include <utility>
 
 namespace vb::morph {
@@ -74,16 +75,31 @@ CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& an
                            const MorphOptions& options, WorkerPool* pool) {
   const auto start = std::chrono::steady_clock::now();
   CoarseResult coarse;
+  CleanedTarget cleaned;
   try {
-    coarse = AlignCoarse(model, target, WithDeadline(options).coarse, pool);
+    // A target with non-finite points or a normal count of its own is left as it is, for
+    // the stages to name the fault.
+    const bool checkable =
+        target.allFinite() && (normals.cols() == 0 || normals.cols() == target.cols());
+    // When nothing is taken out, the cleaning's kd-tree over the target serves the coarse
+    // stage too.
+    std::unique_ptr<PointIndex> index;
+    if (checkable) cleaned = CleanTarget(target, normals, options.clean, &index, pool);
+    coarse = AlignCoarse(model, index != nullptr || !checkable ? target : cleaned.points,
+                         WithDeadline(options).coarse, pool, index.get());
+    if (!checkable) {
+      cleaned.points = target;
+      cleaned.normals = normals;
+    }
   } catch (const std::exception& e) {  // a bad target is a result, not a crash
     CarcassResult r;
     r.error = e.what();
     r.seconds = Since(start);
     return r;
   }
-  CarcassResult r =
-      MorphFromCoarse(model, annotations, std::move(coarse), target, normals, options, pool);
+  CarcassResult r = MorphFromCoarse(model, annotations, std::move(coarse), cleaned.points,
+                                    cleaned.normals, options, pool);
+  r.cleaning = cleaned.summary;
   if (!r.ok && options.deadline.Passed()) Abandoned(&r, options.deadline);
   r.seconds = Since(start);
   return r;

@@ -11,11 +11,14 @@
 #include "morph/dense_alignment.h"
 #include "morph/morph_check.h"
 #include "morph/part_volumes.h"
+#include "morph/target_cleaning.h"
 #include "morph/template_model.h"
 
 namespace vb::morph {
 
 struct MorphOptions {
+  /// Stray points and detached clutter taken out of the target first.
+  CleaningOptions clean;
   CoarseOptions coarse;
   DenseOptions dense;
   CutTransferOptions cuts;
@@ -31,6 +34,8 @@ struct MorphOptions {
 struct CarcassResult {
   bool ok = false;
   std::string error;  ///< why not, when !ok
+  /// What was taken out of the target before the stages (they see the rest).
+  CleaningSummary cleaning;
   CoarseResult coarse;
   DenseResult dense;
   /// The morph as a whole; every cut's confidence already includes check.confidence.

@@ -23,7 +23,12 @@ constexpr const char* kWeight = "weight";
 constexpr const char* kNoise = "noise / size";
 
 const std::array kKeys = {
-    // Coarse stage: skeletons, placements, posture fit.
+    // The target's clutter.
+    VB_PROFILE_KEY(clean.neighbours, kCount, 0, 64, false, "clutter: neighbours a point's spacing is read over (0: off)"),
+    VB_PROFILE_KEY(clean.stray_spacings, "spacings", 1.0, 100.0, false, "clutter: a point this sparse is a stray"),
+    VB_PROFILE_KEY(clean.link_spacings, "spacings", 1.0, 100.0, false, "clutter: radius of a piece (DBSCAN, neighbours points)"),
+    VB_PROFILE_KEY(clean.small_piece, kFraction, 0.0, 1.0, false, "clutter: a piece this small beside the largest..."),
+    VB_PROFILE_KEY(clean.far_piece, "diagonals", 0.0, 1.0, false, "clutter: ...and this far from it is dropped"),
     VB_PROFILE_KEY(coarse.skeleton.voxel, kSize, 0.001, 0.1, false, "target skeleton: downsampling cell"),
     VB_PROFILE_KEY(coarse.skeleton.neighbours, kCount, 3, 64, false, "target skeleton: k of the neighbour graph"),
     VB_PROFILE_KEY(coarse.skeleton.band, kSize, 0.001, 0.2, false, "target skeleton: width of a geodesic level set"),

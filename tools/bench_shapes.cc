@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <numbers>
 #include <random>
 
@@ -24,6 +25,8 @@
 #include "morph/coarse_alignment.h"
 #include "morph/dense_alignment.h"
 #include "morph/feature_association.h"
+#include "morph/morph_carcass.h"
+#include "morph/target_cleaning.h"
 #include "morph/template_model.h"
 #include "perception/carcass_generator.h"
 #include "tools/bench_stats.h"
@@ -166,6 +169,36 @@ std::vector<int> ShadowBand(const Eigen::Matrix3Xd& points, const Eigen::Matrix3
   return kept;
 }
 
+// The clutter variant's stray points, as a real scan has them besides the body: half
+// scattered uniformly over the cloud's box widened by a tenth of its diagonal each side
+// (depth-edge pixels, dust), half on a ball a twentieth of the diagonal in radius, centred
+// 0.15 diagonals beyond the body's farthest point in a random direction (a hook, a part of the
+// next carcass). @p fraction of the cloud's points in all.
+Eigen::Matrix3Xd Clutter(const Eigen::Matrix3Xd& points, double fraction, Random* random) {
+  const Eigen::Vector3d low = points.rowwise().minCoeff();
+  const Eigen::Vector3d high = points.rowwise().maxCoeff();
+  const double diagonal = (high - low).norm();
+  const auto count = static_cast<Eigen::Index>(std::lround(fraction * static_cast<double>(points.cols())));
+  const Eigen::Index scattered = count / 2;
+  Eigen::Matrix3Xd out(3, count);
+  const Eigen::Vector3d box_low = low.array() - 0.1 * diagonal;
+  const Eigen::Vector3d box_size = (high - low).array() + 0.2 * diagonal;
+  for (Eigen::Index i = 0; i < scattered; ++i) {
+    const double x = random->Uniform();
+    const double y = random->Uniform();
+    const double z = random->Uniform();
+    out.col(i) = box_low + box_size.cwiseProduct(Eigen::Vector3d(x, y, z));
+  }
+  const Eigen::Vector3d direction = random->NormalVector().normalized();
+  Eigen::Index farthest = 0;
+  (direction.transpose() * points).maxCoeff(&farthest);
+  const Eigen::Vector3d centre = points.col(farthest) + 0.15 * diagonal * direction;
+  for (Eigen::Index i = scattered; i < count; ++i) {
+    out.col(i) = centre + 0.05 * diagonal * random->NormalVector().normalized();
+  }
+  return out;
+}
+
 Eigen::Matrix3Xd Select(const Eigen::Matrix3Xd& M, const std::vector<int>& columns) {
   Eigen::Matrix3Xd out(3, static_cast<Eigen::Index>(columns.size()));
   for (std::size_t k = 0; k < columns.size(); ++k) out.col(static_cast<Eigen::Index>(k)) = M.col(columns[k]);
@@ -286,10 +319,15 @@ std::filesystem::path PlotScript() {
 
 int RunShapeBench(const ShapeBenchOptions& options) {
   for (const std::string& v : options.variants) {
-    if (v != "clean" && v != "shadow") throw InputError("bench shapes: --variants: '" + v + "' is neither clean nor shadow");
+    if (v != "clean" && v != "shadow" && v != "clutter") {
+      throw InputError("bench shapes: --variants: '" + v + "' is none of clean, shadow, clutter");
+    }
   }
   if (!(options.shadow_fraction > 0 && options.shadow_fraction < 1)) {
     throw InputError("bench shapes: --shadow-fraction must lie in (0, 1)");
+  }
+  if (!(options.clutter_fraction > 0 && options.clutter_fraction <= 1)) {
+    throw InputError("bench shapes: --clutter-fraction must lie in (0, 1]");
   }
   if (options.variants.empty()) throw InputError("bench shapes: --variants: none given");
   morph::TemplateModelOptions model_options;
@@ -364,6 +402,7 @@ int RunShapeBench(const ShapeBenchOptions& options) {
       // every noise level and in both variants, so that rows differ only in what they name.
       const std::uint64_t seed = Fnv1a(c.name + "/" + target.pair) ^ (options.seed * 0x9e3779b97f4a7c15ull);
       Random placement_random(seed), sample_random(seed + 1), shadow_random(seed + 2);
+      Random clutter_random(seed ^ 0xc1077e5ull);  // the noise's streams are seed + 3 onwards
       const Eigen::Isometry3d X = RandomPlacement(&placement_random);
       geometry::TriangleMesh placed = truth_mesh;
       placed.V = X * truth_mesh.V;
@@ -372,6 +411,7 @@ int RunShapeBench(const ShapeBenchOptions& options) {
       clean_points = (X * clean_points).eval();
       normals = (X.linear() * normals).eval();
       const std::vector<int> unshadowed = ShadowBand(clean_points, normals, options.shadow_fraction, &shadow_random);
+      const Eigen::Matrix3Xd clutter = Clutter(clean_points, options.clutter_fraction, &clutter_random);
       for (double sigma_mm : options.sigmas_mm) {
         Random noise_random(seed + 3 + static_cast<std::uint64_t>(std::lround(sigma_mm * 1000)));
         Eigen::Matrix3Xd noisy = clean_points;
@@ -379,7 +419,11 @@ int RunShapeBench(const ShapeBenchOptions& options) {
           noisy.col(i) += (sigma_mm / 1000.0 * noise_random.Normal()) * normals.col(i);
         }
         for (const std::string& variant : options.variants) {
-          const Eigen::Matrix3Xd points = variant == "shadow" ? Select(noisy, unshadowed) : noisy;
+          Eigen::Matrix3Xd points = variant == "shadow" ? Select(noisy, unshadowed) : noisy;
+          if (variant == "clutter") {
+            points.conservativeResize(3, noisy.cols() + clutter.cols());
+            points.rightCols(clutter.cols()) = clutter;
+          }
           Row base;
           base.shape = c.name;
           base.family = c.family;
@@ -414,13 +458,19 @@ int RunShapeBench(const ShapeBenchOptions& options) {
           Row coarse_row = base, full_row = base;
           coarse_row.method = "coarse";
           full_row.method = "full";
-          const morph::CoarseResult coarse = morph::AlignCoarse(model, points, {}, &pool);
-          coarse_row.seconds = coarse.total_seconds;
+          // As MorphCarcass does: clutter out first (its kd-tree reused when nothing went),
+          // then the stages on the rest; the cleaning's time counts in the coarse stage's.
+          std::unique_ptr<morph::PointIndex> index;
+          const morph::CleanedTarget cleaned =
+              morph::CleanTarget(points, Eigen::Matrix3Xd(), morph::MorphOptions{}.clean, &index, &pool);
+          const morph::CoarseResult coarse =
+              morph::AlignCoarse(model, index ? points : cleaned.points, {}, &pool, index.get());
+          coarse_row.seconds = cleaned.summary.seconds + coarse.total_seconds;
           std::string error;
           if (coarse.ok) {
             Score(coarse.mesh.V, placed.V, rest, &coarse_row);
-            const morph::DenseResult dense = morph::AlignDense(model, coarse, points, Eigen::Matrix3Xd(), {}, &pool);
-            full_row.seconds = coarse.total_seconds + dense.total_seconds;
+            const morph::DenseResult dense = morph::AlignDense(model, coarse, cleaned.points, Eigen::Matrix3Xd(), {}, &pool);
+            full_row.seconds = coarse_row.seconds + dense.total_seconds;
             if (dense.ok) {
               Score(dense.mesh.V, placed.V, rest, &full_row);
               if (t == 0 && variant == options.variants.front() &&

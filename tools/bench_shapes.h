@@ -12,12 +12,15 @@ namespace vb::tools {
 
 struct ShapeBenchOptions {
   std::vector<double> sigmas_mm = {0, 4, 16};  ///< noise along normals, at a 1.7 m body
-  std::vector<std::string> variants = {"clean", "shadow"};
+  std::vector<std::string> variants = {"clean", "shadow", "clutter"};
   /// Shapes to run by name (DefaultShapeSpecs, plus "lamb"); empty runs all of them.
   std::vector<std::string> shapes;
   int lamb_pairs = 2;            ///< synthetic lamb targets (generator poses)
   int max_pairs = 0;             ///< per shape, the first n pairs only (0: all)
   double shadow_fraction = 0.2;  ///< points removed in the camera-shadow band
+  /// The clutter variant: stray points added, this many per target point (half scattered
+  /// over the body's box, half on a ball beside it).
+  double clutter_fraction = 0.05;
   /// Points sampled over each target's surface: the model as its rig poses it (not the
   /// closed wrap), or the posed lamb.
   int points = 20000;

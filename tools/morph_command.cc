@@ -104,6 +104,14 @@ int RunMorphCommand(const MorphCommandOptions& options) {
       coarse.deformation_kept ? "kept" : "dropped: the rigid placement fit the surface better",
       coarse.total_seconds);
   if (full) {
+    const morph::CleaningSummary& cleaning = result.cleaning;
+    std::printf(
+        "morph: clutter left out: %d stray points, %d points in %d detached pieces (median "
+        "spacing %.1f mm, %.3f s)\n",
+        cleaning.strays, cleaning.detached, cleaning.pieces_dropped, 1000 * cleaning.spacing,
+        cleaning.seconds);
+  }
+  if (full) {
     // A cloud denser than its noise is used at every n-th point (DenseOptions::thin_to_noise).
     const std::string used = dense.stride == 1
                                  ? "all points used"

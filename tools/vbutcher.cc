@@ -268,7 +268,8 @@ int main(int argc, char** argv) {
   shape_bench_cmd->add_option("--sigmas-mm", shape_bench.sigmas_mm, "Noise along normals, at a 1.7 m body")
       ->delimiter(',')
       ->capture_default_str();
-  shape_bench_cmd->add_option("--variants", shape_bench.variants, "clean, shadow")
+  shape_bench_cmd->add_option("--variants", shape_bench.variants,
+                              "clean, shadow (a camera shadow), clutter (stray points added)")
       ->delimiter(',')
       ->capture_default_str();
   shape_bench_cmd->add_option("--shapes", shape_bench.shapes,
@@ -280,6 +281,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   shape_bench_cmd->add_option("--shadow-fraction", shape_bench.shadow_fraction,
                               "Share of the points the camera shadow removes")
+      ->capture_default_str();
+  shape_bench_cmd->add_option("--clutter-fraction", shape_bench.clutter_fraction,
+                              "Stray points the clutter variant adds, per target point")
       ->capture_default_str();
   shape_bench_cmd->add_option("--points", shape_bench.points, "Points sampled over each target's surface")
       ->capture_default_str();

@@ -82,6 +82,10 @@ check "bench shapes refuses 17 threads" 2 "--threads: Value 17 not in range" \
   "$vbutcher" bench shapes --threads 17 --csv "$work/x.csv"
 check "bench shapes refuses an unknown skeleton" 2 "--template-features: bogus not in {levelset,mcf}" \
   "$vbutcher" bench shapes --template-features bogus --csv "$work/x.csv"
+check "bench shapes refuses an unknown variant" 2 "--variants: 'bogus' is none of clean, shadow, clutter" \
+  "$vbutcher" bench shapes --variants clean,bogus --csv "$work/x.csv"
+check "bench shapes refuses no clutter" 2 "--clutter-fraction must lie in (0, 1]" \
+  "$vbutcher" bench shapes --clutter-fraction 0 --csv "$work/x.csv"
 # The template's skeleton reaches the morph: with the paper's MCF skeleton the coarse stage
 # ends elsewhere on the shadowed lamb than with the level-set one. And the MCF skeleton does
 # not depend on the process: another run (on one thread) writes the same rows.

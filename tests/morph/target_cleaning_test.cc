@@ -1,0 +1,120 @@
+#include "morph/target_cleaning.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+namespace vb::morph {
+namespace {
+
+// @p count points spread evenly over a sphere (a Fibonacci lattice), metres.
+Eigen::Matrix3Xd Sphere(int count, double radius, const Eigen::Vector3d& centre) {
+  Eigen::Matrix3Xd p(3, count);
+  const double golden = std::numbers::pi * (3.0 - std::sqrt(5.0));
+  for (int i = 0; i < count; ++i) {
+    const double z = 1.0 - 2.0 * (i + 0.5) / count;
+    const double r = std::sqrt(1.0 - z * z);
+    p.col(i) =
+        centre + radius * Eigen::Vector3d(r * std::cos(golden * i), r * std::sin(golden * i), z);
+  }
+  return p;
+}
+
+Eigen::Matrix3Xd Join(const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) {
+  Eigen::Matrix3Xd out(3, a.cols() + b.cols());
+  out << a, b;
+  return out;
+}
+
+bool Kept(const CleanedTarget& c, int column) {
+  return std::find(c.kept.begin(), c.kept.end(), column) != c.kept.end();
+}
+
+TEST(CleanTargetTest, LeavesACleanCloudWholeAndHandsBackItsIndex) {
+  const Eigen::Matrix3Xd body = Sphere(6000, 0.5, Eigen::Vector3d::Zero());
+  std::unique_ptr<PointIndex> index;
+  const CleanedTarget c = CleanTarget(body, body, {}, &index);
+  EXPECT_EQ(c.summary.strays, 0);
+  EXPECT_EQ(c.summary.detached, 0);
+  EXPECT_EQ(c.points, body);
+  EXPECT_EQ(c.normals, body);
+  ASSERT_NE(index, nullptr);
+  EXPECT_EQ(index->size(), body.cols());
+  EXPECT_GT(c.summary.spacing, 0.0);
+}
+
+TEST(CleanTargetTest, DropsStrayPointsAndKeepsTheBody) {
+  const Eigen::Matrix3Xd body = Sphere(20000, 0.5, Eigen::Vector3d::Zero());
+  // 343 points on a grid over the body's box widened by 0.2 m, nudged off the lattice.
+  Eigen::Matrix3Xd strays(3, 343);
+  for (int i = 0; i < 343; ++i) {
+    const Eigen::Vector3d cell(i % 7, (i / 7) % 7, i / 49);
+    strays.col(i) = -0.7 * Eigen::Vector3d::Ones() + (1.4 / 6) * cell +
+                    0.01 * Eigen::Vector3d(std::sin(i), std::cos(3 * i), std::sin(7 * i));
+  }
+  const Eigen::Matrix3Xd cloud = Join(body, strays);
+  std::unique_ptr<PointIndex> index;
+  const CleaningOptions options;
+  const CleanedTarget c = CleanTarget(cloud, Eigen::Matrix3Xd(), options, &index);
+  EXPECT_EQ(index, nullptr);  // the cloud changed: the stages need their own
+  for (int i = 0; i < body.cols(); ++i) ASSERT_TRUE(Kept(c, i)) << "body point " << i;
+  // A point farther from the surface than the stray limit (plus room for where its 8th
+  // neighbour lies) is gone; nearer ones have the surface's points for neighbours and are
+  // left to the dense stage's trimming.
+  const double limit = options.stray_spacings * c.summary.spacing;
+  EXPECT_NEAR(c.summary.spacing, 0.020, 0.001);  // the 8th neighbour's distance here
+  int far = 0;
+  for (int i = 0; i < strays.cols(); ++i) {
+    if (std::abs(strays.col(i).norm() - 0.5) > limit + 0.02) {
+      ++far;
+      EXPECT_FALSE(Kept(c, static_cast<int>(body.cols()) + i)) << "stray " << i;
+    }
+  }
+  EXPECT_EQ(far, 258);
+  // A few grid points near the surface are no strays but reach no core point: dropped as
+  // pieces of their own (11, measured).
+  EXPECT_GE(c.summary.strays + c.summary.detached, far);
+  EXPECT_LE(c.summary.detached, 16);
+  EXPECT_EQ(c.points.cols(), cloud.cols() - c.summary.strays - c.summary.detached);
+}
+
+TEST(CleanTargetTest, DropsASmallFarPieceAndKeepsNearOrLargeOnes) {
+  const Eigen::Matrix3Xd body = Sphere(6000, 0.5, Eigen::Vector3d::Zero());
+  // A hook: 300 points on a 0.05 m ball 0.25 m beyond the body (the diagonal is about 1.9 m,
+  // so 0.05 diagonals is about 0.1 m).
+  const Eigen::Matrix3Xd hook = Sphere(300, 0.05, Eigen::Vector3d(0, 0, 0.8));
+  const CleanedTarget far = CleanTarget(Join(body, hook), Eigen::Matrix3Xd());
+  EXPECT_EQ(far.summary.pieces_dropped, 1);
+  EXPECT_EQ(far.summary.detached, 300);
+  EXPECT_EQ(far.points.cols(), body.cols());
+
+  // The same piece 0.03 m from the body: part of it (a limb a shadow cut off).
+  const CleanedTarget near =
+      CleanTarget(Join(body, Sphere(300, 0.05, Eigen::Vector3d(0, 0, 0.58))), Eigen::Matrix3Xd());
+  EXPECT_EQ(near.summary.detached, 0);
+  EXPECT_EQ(near.points.cols(), body.cols() + 300);
+
+  // A second body as large, far away: not clutter by size.
+  const CleanedTarget two =
+      CleanTarget(Join(body, Sphere(6000, 0.5, Eigen::Vector3d(3, 0, 0))), Eigen::Matrix3Xd());
+  EXPECT_EQ(two.summary.detached, 0);
+}
+
+TEST(CleanTargetTest, TheSameOnOneThreadAsOnTwoAndOffWhenAsked) {
+  const Eigen::Matrix3Xd cloud = Join(Sphere(6000, 0.5, Eigen::Vector3d::Zero()),
+                                      Sphere(300, 0.05, Eigen::Vector3d(0, 0, 0.8)));
+  WorkerPool pool(2);
+  const CleanedTarget one = CleanTarget(cloud, cloud, {});
+  const CleanedTarget two = CleanTarget(cloud, cloud, {}, nullptr, &pool);
+  EXPECT_EQ(one.kept, two.kept);
+  EXPECT_EQ(one.normals, two.normals);
+  EXPECT_EQ(one.normals, one.points);  // each normal stays with its point
+
+  CleaningOptions off;
+  off.neighbours = 0;
+  EXPECT_EQ(CleanTarget(cloud, cloud, off).points.cols(), cloud.cols());
+}
+
+}  // namespace
+}  // namespace vb::morph
