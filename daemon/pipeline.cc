@@ -649,12 +649,13 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
     } else {
       std::snprintf(
           numbers, sizeof numbers,
-          "morph %.3f s (coarse %.3f, dense %.3f, cuts %.3f), send %.3f s, answer %.3f s, "
+          "morph %.3f s (clean %.3f, coarse %.3f, dense %.3f, cuts %.3f), send %.3f s, answer "
+          "%.3f s, "
           "latency %.3f s; noise %.1f mm; morph check %.2f (ambiguity %.2f, unexplained %.2f, "
           "stretch %.2f)",
-          result.seconds, result.coarse.total_seconds, result.dense.total_seconds,
-          result.cuts_seconds, outcome.send_s, outcome.answer_s, report.latency_s,
-          1000 * result.dense.noise_m, result.check.confidence,
+          result.seconds, result.cleaning.seconds, result.coarse.total_seconds,
+          result.dense.total_seconds, result.cuts_seconds, outcome.send_s, outcome.answer_s,
+          report.latency_s, 1000 * result.dense.noise_m, result.check.confidence,
           result.check.ambiguity, result.check.unexplained, result.check.stretch);
       text += numbers;
       if (!result.check.concern.empty()) text += ": " + result.check.concern;

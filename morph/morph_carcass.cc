@@ -94,6 +94,7 @@ CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& an
   } catch (const std::exception& e) {  // a bad target is a result, not a crash
     CarcassResult r;
     r.error = e.what();
+    r.cleaning = cleaned.summary;
     r.seconds = Since(start);
     return r;
   }

@@ -31,9 +31,12 @@ CleanedTarget CleanTarget(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd
       out.kept[static_cast<std::size_t>(i)] = static_cast<int>(i);
     out.summary.seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    return out;
   };
-  if (k == 0 || n < 2 * (k + 1)) return keep_all();
+  // Non-finite coordinates have no neighbours to read: left for the stages to name.
+  if (k == 0 || n < 2 * (k + 1) || !points.allFinite()) {
+    keep_all();
+    return out;
+  }
 
   // Each point's k nearest others and the distance to the k-th of them.
   auto owned_index = std::make_unique<PointIndex>(points);
@@ -66,7 +69,10 @@ CleanedTarget CleanTarget(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd
   const auto middle = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
   std::nth_element(sorted.begin(), middle, sorted.end());
   out.summary.spacing = *middle;
-  if (!(out.summary.spacing > 0)) return keep_all();  // most points coincide: nothing to read
+  if (!(out.summary.spacing > 0)) {  // most points coincide: nothing to read
+    keep_all();
+    return out;
+  }
 
   std::vector<char> keep(static_cast<std::size_t>(n), 1);
   const double stray_limit = options.stray_spacings * out.summary.spacing;
@@ -107,37 +113,46 @@ CleanedTarget CleanTarget(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd
   const int largest =
       static_cast<int>(std::max_element(piece_size.begin(), piece_size.end()) - piece_size.begin());
   const int largest_size = piece_size[static_cast<std::size_t>(largest)];
-  // The small pieces, measured against the largest: their nearest point to it.
-  std::vector<int> small;
-  for (Eigen::Index p = 0; p < n; ++p) {
+  const long kept_count = std::count(keep.begin(), keep.end(), 1);
+  const auto is_small = [&](int p) {
     const int size = piece_size[static_cast<std::size_t>(p)];
-    if (size > 0 && p != largest && size < options.small_piece * largest_size)
-      small.push_back(static_cast<int>(p));
-  }
-  if (!small.empty()) {
-    std::vector<int> main_columns;
-    for (Eigen::Index i = 0; i < n; ++i)
-      if (piece[static_cast<std::size_t>(i)] == largest)
-        main_columns.push_back(static_cast<int>(i));
-    const Eigen::Matrix3Xd main = points(Eigen::all, main_columns);
-    const PointIndex main_index(main);
-    // The body's diagonal: the strays' box is not the body's.
-    const double far_limit = options.far_piece * geometry::BoundingBoxDiagonal(main);
+    return size > 0 && size < options.small_piece * largest_size;
+  };
+  std::vector<int> small;
+  for (Eigen::Index p = 0; p < n; ++p)
+    if (is_small(static_cast<int>(p))) small.push_back(static_cast<int>(p));
+  // A cloud whose largest piece is under half of it fell apart for the neighbour graph (rows
+  // of a line scanner farther apart than 4 spacings, say): the pieces say nothing then.
+  if (!small.empty() && 2 * static_cast<long>(largest_size) >= kept_count) {
+    // The small pieces' gaps to the pieces that are not small (the body, and a limb a shadow
+    // cut off as large as a tenth of it), and the limit on the body's diagonal: the strays'
+    // box is not the body's.
+    std::vector<int> body_columns;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const int p = piece[static_cast<std::size_t>(i)];
+      if (p >= 0 && !is_small(p)) body_columns.push_back(static_cast<int>(i));
+    }
+    const Eigen::Matrix3Xd body = points(Eigen::all, body_columns);
+    const PointIndex body_index(body);
+    const double far_limit = options.far_piece * geometry::BoundingBoxDiagonal(body);
     std::vector<double> gap(static_cast<std::size_t>(n), std::numeric_limits<double>::infinity());
     for (Eigen::Index i = 0; i < n; ++i) {
       const int p = piece[static_cast<std::size_t>(i)];
-      if (p < 0 || piece_size[static_cast<std::size_t>(p)] >= options.small_piece * largest_size ||
-          p == largest)
-        continue;
-      const double d = (main.col(main_index.Nearest(points.col(i))) - points.col(i)).norm();
+      if (p < 0 || !is_small(p)) continue;
+      const double d = (body.col(body_index.Nearest(points.col(i))) - points.col(i)).norm();
       gap[static_cast<std::size_t>(p)] = std::min(gap[static_cast<std::size_t>(p)], d);
     }
     std::vector<char> dropped(static_cast<std::size_t>(n), 0);
     for (int p : small) {
       if (gap[static_cast<std::size_t>(p)] <= far_limit) continue;
       dropped[static_cast<std::size_t>(p)] = 1;
-      ++out.summary.pieces_dropped;
-      out.summary.detached += piece_size[static_cast<std::size_t>(p)];
+      const int size = piece_size[static_cast<std::size_t>(p)];
+      if (size == 1) {  // a lone point is a stray, whatever its neighbours' spacing
+        ++out.summary.strays;
+      } else {
+        ++out.summary.pieces_dropped;
+        out.summary.detached += size;
+      }
     }
     for (Eigen::Index i = 0; i < n; ++i) {
       const int p = piece[static_cast<std::size_t>(i)];
@@ -147,7 +162,8 @@ CleanedTarget CleanTarget(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd
 
   if (out.summary.strays + out.summary.detached == 0) {
     if (index_out != nullptr) *index_out = std::move(owned_index);
-    return keep_all();
+    keep_all();
+    return out;
   }
   for (Eigen::Index i = 0; i < n; ++i)
     if (keep[static_cast<std::size_t>(i)]) out.kept.push_back(static_cast<int>(i));

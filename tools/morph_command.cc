@@ -3,9 +3,10 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
+#include <memory>
 #include <numbers>
 #include <vector>
-#include <cstdio>
 
 #include "io/annotations.h"
 #include "io/error.h"
@@ -80,7 +81,13 @@ int RunMorphCommand(const MorphCommandOptions& options) {
     result = morpher.Morph(target.points, target.normals);
   } else {
     morph::WorkerPool pool(options.threads);
-    result.coarse = morph::AlignCoarse(model, target.points, morph_options.coarse, &pool);
+    // As the full stage does (MorphCarcass): clutter out first.
+    std::unique_ptr<morph::PointIndex> index;
+    const morph::CleanedTarget cleaned =
+        morph::CleanTarget(target.points, Eigen::Matrix3Xd(), morph_options.clean, &index, &pool);
+    result.cleaning = cleaned.summary;
+    result.coarse = morph::AlignCoarse(model, index ? target.points : cleaned.points,
+                                       morph_options.coarse, &pool, index.get());
   }
   const morph::CoarseResult& coarse = result.coarse;
   const morph::DenseResult& dense = result.dense;
@@ -103,7 +110,7 @@ int RunMorphCommand(const MorphCommandOptions& options) {
       coarse.deformation_seconds, coarse.deformation.iterations,
       coarse.deformation_kept ? "kept" : "dropped: the rigid placement fit the surface better",
       coarse.total_seconds);
-  if (full) {
+  {
     const morph::CleaningSummary& cleaning = result.cleaning;
     std::printf(
         "morph: clutter left out: %d stray points, %d points in %d detached pieces (median "

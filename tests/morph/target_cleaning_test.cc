@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 namespace vb::morph {
@@ -72,33 +73,65 @@ TEST(CleanTargetTest, DropsStrayPointsAndKeepsTheBody) {
     }
   }
   EXPECT_EQ(far, 258);
-  // A few grid points near the surface are no strays but reach no core point: dropped as
-  // pieces of their own (11, measured).
-  EXPECT_GE(c.summary.strays + c.summary.detached, far);
-  EXPECT_LE(c.summary.detached, 16);
+  // A few grid points nearer the surface reach no core point: lone, dropped and counted as
+  // strays too.
+  EXPECT_GE(c.summary.strays, far);
+  EXPECT_EQ(c.summary.detached, 0);
   EXPECT_EQ(c.points.cols(), cloud.cols() - c.summary.strays - c.summary.detached);
 }
 
 TEST(CleanTargetTest, DropsASmallFarPieceAndKeepsNearOrLargeOnes) {
-  const Eigen::Matrix3Xd body = Sphere(6000, 0.5, Eigen::Vector3d::Zero());
-  // A hook: 300 points on a 0.05 m ball 0.25 m beyond the body (the diagonal is about 1.9 m,
-  // so 0.05 diagonals is about 0.1 m).
-  const Eigen::Matrix3Xd hook = Sphere(300, 0.05, Eigen::Vector3d(0, 0, 0.8));
-  const CleanedTarget far = CleanTarget(Join(body, hook), Eigen::Matrix3Xd());
+  // The body's diagonal is sqrt(3) m, so pieces farther than 0.087 m from it may go. With
+  // pieces linked within 2 spacings (0.04 m here) a piece 0.06 m away is a piece of its own,
+  // and the gap rule alone decides.
+  const Eigen::Matrix3Xd body = Sphere(20000, 0.5, Eigen::Vector3d::Zero());
+  CleaningOptions options;
+  options.link_spacings = 2.0;
+  // A hook: 300 points on a 0.05 m ball 0.25 m beyond the body.
+  const CleanedTarget far =
+      CleanTarget(Join(body, Sphere(300, 0.05, Eigen::Vector3d(0, 0, 0.8))), {}, options);
   EXPECT_EQ(far.summary.pieces_dropped, 1);
   EXPECT_EQ(far.summary.detached, 300);
   EXPECT_EQ(far.points.cols(), body.cols());
 
-  // The same piece 0.03 m from the body: part of it (a limb a shadow cut off).
+  // The same piece 0.06 m from the body: part of it (a limb a shadow cut off).
   const CleanedTarget near =
-      CleanTarget(Join(body, Sphere(300, 0.05, Eigen::Vector3d(0, 0, 0.58))), Eigen::Matrix3Xd());
+      CleanTarget(Join(body, Sphere(300, 0.05, Eigen::Vector3d(0, 0, 0.61))), {}, options);
   EXPECT_EQ(near.summary.detached, 0);
   EXPECT_EQ(near.points.cols(), body.cols() + 300);
 
-  // A second body as large, far away: not clutter by size.
-  const CleanedTarget two =
-      CleanTarget(Join(body, Sphere(6000, 0.5, Eigen::Vector3d(3, 0, 0))), Eigen::Matrix3Xd());
-  EXPECT_EQ(two.summary.detached, 0);
+  // A small piece far from the body but beside a second, smaller large piece: kept, as the
+  // gap is measured to every piece that is not small.
+  const Eigen::Matrix3Xd bodies = Join(body, Sphere(15000, 0.5, Eigen::Vector3d(3, 0, 0)));
+  const CleanedTarget beside =
+      CleanTarget(Join(bodies, Sphere(300, 0.05, Eigen::Vector3d(3.61, 0, 0))), {}, options);
+  EXPECT_EQ(beside.summary.detached, 0);
+  EXPECT_EQ(beside.points.cols(), bodies.cols() + 300);
+}
+
+// Rows 0.1 m apart with points 0.01 m apart along them (a line scanner's): the 8 nearest
+// neighbours never cross between rows, so every row is a piece of its own. The first row is
+// 15 m long, the 39 others 1 m: by size and gap most of them would go, but the largest piece
+// holds under half the points, and none is dropped.
+TEST(CleanTargetTest, KeepsACloudThatFallsApartForTheNeighbourGraph) {
+  Eigen::Matrix3Xd rows(3, 1500 + 39 * 100);
+  for (int c = 0; c < 1500; ++c) rows.col(c) = Eigen::Vector3d(0.01 * c, 0.0, 0.0);
+  for (int r = 1; r < 40; ++r)
+    for (int c = 0; c < 100; ++c)
+      rows.col(1500 + (r - 1) * 100 + c) = Eigen::Vector3d(0.01 * c, 0.1 * r, 0.0);
+  const CleanedTarget c = CleanTarget(rows, {});
+  EXPECT_EQ(c.summary.strays, 0);
+  EXPECT_EQ(c.summary.detached, 0);
+  EXPECT_EQ(c.points.cols(), rows.cols());
+}
+
+TEST(CleanTargetTest, LeavesNonFiniteCloudsWhole) {
+  Eigen::Matrix3Xd cloud = Sphere(2000, 0.5, Eigen::Vector3d::Zero());
+  cloud(1, 7) = std::numeric_limits<double>::quiet_NaN();
+  std::unique_ptr<PointIndex> index;
+  const CleanedTarget c = CleanTarget(cloud, {}, {}, &index);
+  EXPECT_EQ(c.points.cols(), cloud.cols());
+  EXPECT_EQ(index, nullptr);
 }
 
 TEST(CleanTargetTest, TheSameOnOneThreadAsOnTwoAndOffWhenAsked) {
