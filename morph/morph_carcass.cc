@@ -70,6 +70,25 @@ CarcassResult MorphFromCoarse(const TemplateModel& model, const io::Annotations&
   return r;
 }
 
+CoarseResult CleanAndAlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target,
+                                 const Eigen::Matrix3Xd& normals, const CleaningOptions& clean,
+                                 const CoarseOptions& coarse, WorkerPool* pool,
+                                 CleanedTarget* cleaned) {
+  const bool checkable =
+      target.allFinite() && (normals.cols() == 0 || normals.cols() == target.cols());
+  if (!checkable) {
+    *cleaned = CleanedTarget{};
+    cleaned->points = target;
+    cleaned->normals = normals;
+    return AlignCoarse(model, target, coarse, pool);
+  }
+  // When nothing is taken out, the cleaning's kd-tree over the target serves the coarse stage
+  // too (it refers to `target`, which the cleaned copy equals).
+  std::unique_ptr<PointIndex> index;
+  *cleaned = CleanTarget(target, normals, clean, &index, pool);
+  return AlignCoarse(model, index != nullptr ? target : cleaned->points, coarse, pool, index.get());
+}
+
 CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& annotations,
                            const Eigen::Matrix3Xd& target, const Eigen::Matrix3Xd& normals,
                            const MorphOptions& options, WorkerPool* pool) {
@@ -77,20 +96,8 @@ CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& an
   CoarseResult coarse;
   CleanedTarget cleaned;
   try {
-    // A target with non-finite points or a normal count of its own is left as it is, for
-    // the stages to name the fault.
-    const bool checkable =
-        target.allFinite() && (normals.cols() == 0 || normals.cols() == target.cols());
-    // When nothing is taken out, the cleaning's kd-tree over the target serves the coarse
-    // stage too.
-    std::unique_ptr<PointIndex> index;
-    if (checkable) cleaned = CleanTarget(target, normals, options.clean, &index, pool);
-    coarse = AlignCoarse(model, index != nullptr || !checkable ? target : cleaned.points,
-                         WithDeadline(options).coarse, pool, index.get());
-    if (!checkable) {
-      cleaned.points = target;
-      cleaned.normals = normals;
-    }
+    coarse = CleanAndAlignCoarse(model, target, normals, options.clean,
+                                 WithDeadline(options).coarse, pool, &cleaned);
   } catch (const std::exception& e) {  // a bad target is a result, not a crash
     CarcassResult r;
     r.error = e.what();

@@ -46,6 +46,17 @@ struct CarcassResult {
   double seconds = 0;
 };
 
+/// The morph's first steps, as MorphCarcass takes them: clutter out (CleanTarget), then
+/// AlignCoarse on the rest, with the cleaning's kd-tree when nothing went. A target with
+/// non-finite points or a normal count of its own is not cleaned, for the stages to name the
+/// fault. @p cleaned receives the cloud (and normals) the later stages are to use and what
+/// was left out. Throws what AlignCoarse throws.
+/// @param pool threads to share the work with (none: the caller's alone).
+CoarseResult CleanAndAlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target,
+                                 const Eigen::Matrix3Xd& normals, const CleaningOptions& clean,
+                                 const CoarseOptions& coarse, WorkerPool* pool,
+                                 CleanedTarget* cleaned);
+
 /// The stages after the coarse one, from @p coarse: dense surface, the whole-morph check, cut
 /// transfer and virtual cutting. MorphCarcass calls it after AlignCoarse; the benchmark also
 /// calls it from a coarse result it fitted to the ground truth. Never throws on a bad target.

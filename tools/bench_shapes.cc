@@ -11,7 +11,6 @@
 #include <cstdlib>
 #include <fstream>
 #include <map>
-#include <memory>
 #include <numbers>
 #include <random>
 
@@ -26,7 +25,6 @@
 #include "morph/dense_alignment.h"
 #include "morph/feature_association.h"
 #include "morph/morph_carcass.h"
-#include "morph/target_cleaning.h"
 #include "morph/template_model.h"
 #include "perception/carcass_generator.h"
 #include "tools/bench_stats.h"
@@ -458,13 +456,11 @@ int RunShapeBench(const ShapeBenchOptions& options) {
           Row coarse_row = base, full_row = base;
           coarse_row.method = "coarse";
           full_row.method = "full";
-          // As MorphCarcass does: clutter out first (its kd-tree reused when nothing went),
-          // then the stages on the rest; the cleaning's time counts in the coarse stage's.
-          std::unique_ptr<morph::PointIndex> index;
-          const morph::CleanedTarget cleaned =
-              morph::CleanTarget(points, Eigen::Matrix3Xd(), morph::MorphOptions{}.clean, &index, &pool);
-          const morph::CoarseResult coarse =
-              morph::AlignCoarse(model, index ? points : cleaned.points, {}, &pool, index.get());
+          // As MorphCarcass does: clutter out first, then the stages on the rest; the
+          // cleaning's time counts in the coarse stage's.
+          morph::CleanedTarget cleaned;
+          const morph::CoarseResult coarse = morph::CleanAndAlignCoarse(
+              model, points, Eigen::Matrix3Xd(), morph::MorphOptions{}.clean, {}, &pool, &cleaned);
           coarse_row.seconds = cleaned.summary.seconds + coarse.total_seconds;
           std::string error;
           if (coarse.ok) {

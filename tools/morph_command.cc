@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <memory>
 #include <numbers>
 #include <vector>
 
@@ -82,12 +81,11 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   } else {
     morph::WorkerPool pool(options.threads);
     // As the full stage does (MorphCarcass): clutter out first.
-    std::unique_ptr<morph::PointIndex> index;
-    const morph::CleanedTarget cleaned =
-        morph::CleanTarget(target.points, Eigen::Matrix3Xd(), morph_options.clean, &index, &pool);
+    morph::CleanedTarget cleaned;
+    result.coarse =
+        morph::CleanAndAlignCoarse(model, target.points, target.normals, morph_options.clean,
+                                   morph_options.coarse, &pool, &cleaned);
     result.cleaning = cleaned.summary;
-    result.coarse = morph::AlignCoarse(model, index ? target.points : cleaned.points,
-                                       morph_options.coarse, &pool, index.get());
   }
   const morph::CoarseResult& coarse = result.coarse;
   const morph::DenseResult& dense = result.dense;
