@@ -21,7 +21,8 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
                                          const geometry::TriangleMesh& morphed,
                                          const Eigen::Matrix3Xd& target,
                                          const Eigen::Matrix3Xd& target_normals, double size,
-                                         const CutTransferOptions& options, double noise) {
+                                         const CutTransferOptions& options, double noise,
+                                         WorkerPool* pool) {
   VB_DEMAND(rest.num_vertices() == morphed.num_vertices() && target.cols() > 0 &&
             target_normals.cols() == target.cols() && size > 0 && noise >= 0 &&
             options.slide_band_noise > 0 && options.slide_sigma > 0 &&
@@ -80,7 +81,7 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
             reading.scale = BandScale(cut, extent, rest, morphed, band);
             if (plane_points.cols() == 0) {
               plane_points = PlanePoints(target, target_normals, index, plane_neighbours,
-                                         options.slide_plane_radius * size, true);
+                                         options.slide_plane_radius * size, true, pool);
             }
             if (reading.scale > 0) {
               reading.band =

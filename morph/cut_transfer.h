@@ -7,6 +7,7 @@
 #include "geometry/plane.h"
 #include "geometry/triangle_mesh.h"
 #include "io/annotations.h"
+#include "morph/worker_pool.h"
 
 namespace vb::morph {
 
@@ -137,12 +138,14 @@ struct TransferredCut {
 /// @param[in] size the template's size in target units (template size times morph scale).
 /// @param[in] noise the target's sensor noise (standard deviation along the surface), a
 /// fraction of the template's size, as DenseResult::noise; 0 when clean or unknown.
+/// @param pool when given, the target's plane points are made on its threads; the result is
+///   the same on any number of threads.
 std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
                                          const geometry::TriangleMesh& rest,
                                          const geometry::TriangleMesh& morphed,
                                          const Eigen::Matrix3Xd& target,
                                          const Eigen::Matrix3Xd& target_normals, double size,
                                          const CutTransferOptions& options = {},
-                                         double noise = 0.0);
+                                         double noise = 0.0, WorkerPool* pool = nullptr);
 
 }  // namespace vb::morph

@@ -99,7 +99,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
       options.surface_neighbours, options.max_surface_neighbours, relative_surface_noise);
   const Eigen::Matrix3Xd centroids =
       PlanePoints(points, normals, *index, result.surface_neighbours, options.surface_radius,
-                  options.correct_plane_offset);
+                  options.correct_plane_offset, pool);
   const double relative_noise = noise / options.noise_reference;
   const double noise_factor = 1.0 / (1.0 + relative_noise * relative_noise);
   result.state = coarse.state;

@@ -52,7 +52,7 @@ CarcassResult MorphFromCoarse(const TemplateModel& model, const io::Annotations&
         r.check = CheckMorph(model, r.coarse, r.dense, options.check);
         r.cuts = TransferCuts(annotations, model.mesh, r.dense.mesh, r.dense.target,
                               r.dense.target_normals, r.coarse.template_to_target.scale,
-                              options.cuts, r.dense.noise);
+                              options.cuts, r.dense.noise, pool);
         for (TransferredCut& cut : r.cuts) cut.confidence *= r.check.confidence;
         if (!r.cuts.empty()) {
           r.parts = CutTargetParts(r.dense.mesh, r.cuts, r.dense.target,

@@ -3,6 +3,7 @@
 #include <Eigen/Core>
 
 #include "morph/point_index.h"
+#include "morph/worker_pool.h"
 
 // Points on a noisy cloud's local planes (eq. 14's targets), and how many points they average.
 namespace vb::morph {
@@ -26,7 +27,10 @@ double CurvatureOffset(double curvature_sum, double sigma);
 /// times the squared radius of the neighbourhood, nearly the same at neighbouring points;
 /// adding that back removes the bias and keeps the averaging.
 /// @param[in] points, normals 3 by N (unit normals); @p index over @p points; k >= 1.
+/// @param pool when given, the points are shared among its threads; the result is the same
+///   on any number of threads.
 Eigen::Matrix3Xd PlanePoints(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
-                             const PointIndex& index, int k, double radius, bool correct_curvature);
+                             const PointIndex& index, int k, double radius, bool correct_curvature,
+                             WorkerPool* pool = nullptr);
 
 }  // namespace vb::morph

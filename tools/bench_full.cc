@@ -163,7 +163,7 @@ FullRow Evaluate(const morph::TemplateModel& model, const io::Annotations& annot
   };
   const std::vector<morph::TransferredCut> floor_cuts =
       morph::TransferCuts(annotations, model.mesh, truth.mesh, dense.target, dense.target_normals,
-                          coarse.template_to_target.scale, options.cuts, dense.noise);
+                          coarse.template_to_target.scale, options.cuts, dense.noise, pool);
   for (std::size_t c = 0; c < floor_cuts.size(); ++c)
     row.cut_floor_mm.push_back(mean_distance_mm(floor_cuts[c].plane, c));
   if (start_from_truth) {

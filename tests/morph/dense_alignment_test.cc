@@ -19,6 +19,7 @@
 #include "morph/part_volumes.h"
 #include "morph/plane_points.h"
 #include "morph/surface_distance.h"
+#include "morph/worker_pool.h"
 #include "perception/carcass_generator.h"
 #include "perception/carcass_shape.h"
 #include "tests/support/lamb_fixture.h"
@@ -107,6 +108,25 @@ TEST(PlanePointsTest, CorrectionRemovesTheCentroidsCurvatureBiasAndKeepsTheAvera
       EXPECT_LT(spread(corrected_radius), 0.55 * noise_sigma);
     } else {
       EXPECT_LT(spread(corrected_radius), spread(plain_radius));
+    }
+  }
+}
+
+// The points are shared among a pool's threads in blocks, each writing only its own
+// columns: the same plane points to the last bit on any number of threads.
+TEST(PlanePointsTest, AreTheSameOnOneThreadAsOnSeveral) {
+  const Eigen::Matrix3Xd normals = SpherePoints(20000, 5);
+  Eigen::Matrix3Xd points = normals;
+  std::mt19937_64 rng(9);
+  std::normal_distribution<double> g(0.0, 0.004);
+  for (Eigen::Index i = 0; i < points.cols(); ++i) points.col(i) *= 1.0 + g(rng);
+  const PointIndex index(points);
+  for (bool correct : {false, true}) {
+    const Eigen::Matrix3Xd alone = PlanePoints(points, normals, index, 10, 0.1, correct);
+    for (int threads : {2, 3}) {
+      WorkerPool pool(threads);
+      EXPECT_TRUE(PlanePoints(points, normals, index, 10, 0.1, correct, &pool) == alone)
+          << threads << " threads, correction " << correct;
     }
   }
 }
