@@ -11,7 +11,7 @@ namespace vb::morph {
 
 Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointIndex& index, int k,
                                  int passes, const Eigen::Matrix3Xd& reference,
-                                 const Eigen::Matrix3Xd& reference_normals) {
+                                 const Eigen::Matrix3Xd& reference_normals, WorkerPool* pool) {
   VB_DEMAND(k >= 3 && passes >= 1 && index.size() == points.cols() && reference.cols() >= 1 &&
             reference.cols() == reference_normals.cols());
   const Eigen::Index n = points.cols();
@@ -19,13 +19,18 @@ Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointInde
   if (n == 0) return normals;
   // Each point's neighbours (the point itself among them), k or all there are.
   const int neighbours = static_cast<int>(std::min<Eigen::Index>(k, n));
+  // Every loop over the points goes to the pool's threads in blocks, each writing only its
+  // own columns.
+  constexpr Eigen::Index kBlock = 1024;
   Eigen::MatrixXi near(neighbours, n);
-  std::vector<int> found;
-  std::vector<double> distances;
-  for (Eigen::Index i = 0; i < n; ++i) {
-    index.Nearest(points.col(i), neighbours, &found, &distances);
-    std::copy(found.begin(), found.end(), near.col(i).data());
-  }
+  ForEachBlock(pool, n, kBlock, [&](Eigen::Index first, Eigen::Index last) {
+    std::vector<int> found;
+    std::vector<double> distances;
+    for (Eigen::Index i = first; i < last; ++i) {
+      index.Nearest(points.col(i), neighbours, &found, &distances);
+      std::copy(found.begin(), found.end(), near.col(i).data());
+    }
+  });
   // Moments about the cloud's centroid, so the covariance keeps its digits: per point the
   // count (row 0), the sum (rows 1-3) and the outer products xx, xy, xz, yy, yz, zz (4-9).
   using Moments = Eigen::Matrix<double, 10, Eigen::Dynamic>;
@@ -38,26 +43,30 @@ Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointInde
   }
   Moments widened(10, n);
   for (int pass = 0; pass < passes; ++pass) {
-    for (Eigen::Index i = 0; i < n; ++i) {
-      widened.col(i).setZero();
-      for (int m = 0; m < neighbours; ++m) widened.col(i) += moments.col(near(m, i));
-      widened.col(i) /= static_cast<double>(neighbours);
-    }
+    ForEachBlock(pool, n, kBlock, [&](Eigen::Index first, Eigen::Index last) {
+      for (Eigen::Index i = first; i < last; ++i) {
+        widened.col(i).setZero();
+        for (int m = 0; m < neighbours; ++m) widened.col(i) += moments.col(near(m, i));
+        widened.col(i) /= static_cast<double>(neighbours);
+      }
+    });
     moments.swap(widened);
   }
   const PointIndex reference_index(reference);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const auto m = moments.col(i);
-    const Eigen::Vector3d mean = m.segment<3>(1) / m[0];
-    Eigen::Matrix3d covariance;
-    covariance << m[4], m[5], m[6], m[5], m[7], m[8], m[6], m[8], m[9];
-    covariance = covariance / m[0] - mean * mean.transpose();
-    Eigen::Vector3d normal =
-        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance).eigenvectors().col(0);
-    if (normal.dot(reference_normals.col(reference_index.Nearest(points.col(i)))) < 0)
-      normal = -normal;
-    normals.col(i) = normal;
-  }
+  ForEachBlock(pool, n, kBlock, [&](Eigen::Index first, Eigen::Index last) {
+    for (Eigen::Index i = first; i < last; ++i) {
+      const auto m = moments.col(i);
+      const Eigen::Vector3d mean = m.segment<3>(1) / m[0];
+      Eigen::Matrix3d covariance;
+      covariance << m[4], m[5], m[6], m[5], m[7], m[8], m[6], m[8], m[9];
+      covariance = covariance / m[0] - mean * mean.transpose();
+      Eigen::Vector3d normal =
+          Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance).eigenvectors().col(0);
+      if (normal.dot(reference_normals.col(reference_index.Nearest(points.col(i)))) < 0)
+        normal = -normal;
+      normals.col(i) = normal;
+    }
+  });
   return normals;
 }
 

@@ -3,6 +3,7 @@
 #include <Eigen/Core>
 
 #include "morph/point_index.h"
+#include "morph/worker_pool.h"
 
 // Normals of a point cloud.
 namespace vb::morph {
@@ -21,8 +22,11 @@ namespace vb::morph {
 /// query costs several times more.
 /// @param[in] points 3 by N; @param[in] reference, reference_normals 3 by M, M >= 1.
 /// @pre k >= 3, passes >= 1, @p index over @p points.
+/// @param pool when given, the points are shared among its threads; the result is the same
+///   on any number of threads.
 Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointIndex& index, int k,
                                  int passes, const Eigen::Matrix3Xd& reference,
-                                 const Eigen::Matrix3Xd& reference_normals);
+                                 const Eigen::Matrix3Xd& reference_normals,
+                                 WorkerPool* pool = nullptr);
 
 }  // namespace vb::morph

@@ -87,7 +87,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
         std::lround(std::clamp(relative_surface_noise * relative_surface_noise, 1.0,
                                static_cast<double>(std::max(1, options.max_normal_passes)))));
     normals = EstimateNormals(points, *index, options.normal_neighbours, result.normal_passes,
-                              posed.V, posed.N);
+                              posed.V, posed.N, pool);
   } else {
     const Eigen::Matrix3Xd used =
         target_normals(Eigen::all, Eigen::seq(0, Eigen::last, result.stride));

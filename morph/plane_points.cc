@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <utility>
 #include <vector>
 
 #include "io/error.h"
@@ -27,19 +26,13 @@ Eigen::Matrix3Xd PlanePoints(const Eigen::Matrix3Xd& points, const Eigen::Matrix
   const Eigen::Index n = points.cols();
   // The points go to the pool's threads in blocks; each block writes only its own columns.
   constexpr Eigen::Index kBlock = 1024;
-  const int blocks = static_cast<int>((n + kBlock - 1) / kBlock);
-  const auto block_range = [n](int b) {
-    const Eigen::Index first = static_cast<Eigen::Index>(b) * kBlock;
-    return std::pair{first, std::min(n, first + kBlock)};
-  };
   Eigen::Matrix3Xd centroids(3, n);
   // Each point's neighbours, kept for the correction only: k per point, -1 where fewer exist.
   Eigen::MatrixXi neighbours;
   if (correct_curvature) neighbours = Eigen::MatrixXi::Constant(k, n, -1);
-  ForEach(pool, blocks, [&](int b) {
+  ForEachBlock(pool, n, kBlock, [&](Eigen::Index first, Eigen::Index last) {
     std::vector<int> found;
     std::vector<double> distances;
-    const auto [first, last] = block_range(b);
     for (Eigen::Index i = first; i < last; ++i) {
       index.Nearest(points.col(i), k, &found, &distances);
       // The nearest (the point itself) always counts; the rest only within the radius.
@@ -56,8 +49,7 @@ Eigen::Matrix3Xd PlanePoints(const Eigen::Matrix3Xd& points, const Eigen::Matrix
     Eigen::VectorXd offsets(n);
     for (Eigen::Index i = 0; i < n; ++i)
       offsets[i] = normals.col(i).dot(points.col(i) - centroids.col(i));
-    ForEach(pool, blocks, [&](int b) {
-      const auto [first, last] = block_range(b);
+    ForEachBlock(pool, n, kBlock, [&](Eigen::Index first, Eigen::Index last) {
       for (Eigen::Index i = first; i < last; ++i) {
         double sum = 0.0;
         int count = 0;

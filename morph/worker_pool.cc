@@ -4,10 +4,13 @@
 #include <algorithm>
 #include <atomic>
 #include <exception>
+#include <limits>
 #include <mutex>
 #include <thread>
 #include <unsupported/Eigen/CXX11/ThreadPool>
 #include <utility>
+
+#include "io/error.h"
 
 namespace vb::morph {
 namespace {
@@ -90,6 +93,16 @@ void ForEach(WorkerPool* pool, int n, const std::function<void(int)>& body) {
   } else {
     for (int i = 0; i < n; ++i) body(i);
   }
+}
+
+void ForEachBlock(WorkerPool* pool, std::int64_t n, std::int64_t block,
+                  const std::function<void(std::int64_t first, std::int64_t last)>& body) {
+  VB_DEMAND(block >= 1 && n >= 0 && (n + block - 1) / block <= std::numeric_limits<int>::max());
+  const int blocks = static_cast<int>((n + block - 1) / block);
+  ForEach(pool, blocks, [&](int b) {
+    const std::int64_t first = static_cast<std::int64_t>(b) * block;
+    body(first, std::min(n, first + block));
+  });
 }
 
 }  // namespace vb::morph

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <memory>
 
@@ -41,5 +42,11 @@ class WorkerPool {
 
 /// @p pool's ForEach, or the same loop on the caller alone when @p pool is null.
 void ForEach(WorkerPool* pool, int n, const std::function<void(int)>& body);
+
+/// [0, @p n) cut into blocks of @p block (the last may be shorter), body(first, last) called
+/// once per block as ForEach calls its body: for loops over many cheap items, each block
+/// setting up its own scratch. @pre block >= 1.
+void ForEachBlock(WorkerPool* pool, std::int64_t n, std::int64_t block,
+                  const std::function<void(std::int64_t first, std::int64_t last)>& body);
 
 }  // namespace vb::morph

@@ -113,7 +113,23 @@ TEST(PlanePointsTest, CorrectionRemovesTheCentroidsCurvatureBiasAndKeepsTheAvera
 }
 
 // The points are shared among a pool's threads in blocks, each writing only its own
-// columns: the same plane points to the last bit on any number of threads.
+// columns: the same normals to the last bit on any number of threads.
+TEST(EstimateNormalsTest, AreTheSameOnOneThreadAsOnSeveral) {
+  const Eigen::Matrix3Xd outward = SpherePoints(20000, 11);
+  Eigen::Matrix3Xd points = outward;
+  std::mt19937_64 rng(12);
+  std::normal_distribution<double> g(0.0, 0.01);
+  for (Eigen::Index i = 0; i < points.cols(); ++i) points.col(i) *= 1.0 + g(rng);
+  const PointIndex index(points);
+  const Eigen::Matrix3Xd alone = EstimateNormals(points, index, 12, 3, outward, outward);
+  for (int threads : {2, 3}) {
+    WorkerPool pool(threads);
+    EXPECT_TRUE(EstimateNormals(points, index, 12, 3, outward, outward, &pool) == alone)
+        << threads << " threads";
+  }
+}
+
+// Likewise the plane points.
 TEST(PlanePointsTest, AreTheSameOnOneThreadAsOnSeveral) {
   const Eigen::Matrix3Xd normals = SpherePoints(20000, 5);
   Eigen::Matrix3Xd points = normals;
