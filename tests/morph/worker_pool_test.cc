@@ -5,6 +5,7 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <cstdint>
 #include <mutex>
 #include <set>
 #include <stdexcept>
@@ -59,6 +60,26 @@ TEST(WorkerPoolTest, CallsEveryIndexOnceOnAsManyThreadsAsAsked) {
       if (threads == 1) {
         EXPECT_EQ(*ids.begin(), std::this_thread::get_id());
       }
+    }
+  }
+}
+
+// Blocks cover [0, n) once each, the last one shorter, with or without a pool.
+TEST(WorkerPoolTest, BlocksCoverEveryIndexOnce) {
+  WorkerPool pool(2);
+  for (WorkerPool* p : {static_cast<WorkerPool*>(nullptr), &pool}) {
+    for (std::int64_t n : {0, 1, 5, 8, 9, 100}) {
+      std::vector<std::atomic<int>> calls(static_cast<std::size_t>(n));
+      std::atomic<int> blocks = 0;
+      ForEachBlock(p, n, 4, [&](std::int64_t first, std::int64_t last) {
+        ++blocks;
+        EXPECT_EQ(first % 4, 0);
+        EXPECT_LE(last - first, 4);
+        EXPECT_TRUE(last - first == 4 || last == n) << first << " " << last;
+        for (std::int64_t i = first; i < last; ++i) ++calls[static_cast<std::size_t>(i)];
+      });
+      EXPECT_EQ(blocks, (n + 3) / 4) << n;
+      for (std::int64_t i = 0; i < n; ++i) EXPECT_EQ(calls[static_cast<std::size_t>(i)], 1) << i;
     }
   }
 }
