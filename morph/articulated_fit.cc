@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 
 #include "io/error.h"
 
@@ -39,7 +40,82 @@ std::vector<int> Spread(Eigen::Index n, int wanted) {
   return out;
 }
 
+// Column of sample @p k of branch @p b in a guide's matrices.
+Eigen::Index SampleColumn(int b, int k) {
+  return static_cast<Eigen::Index>(b) * BranchGuide::kSamples + k;
+}
+
+// The sample nearest @p fraction of a branch's length from its root.
+int SampleAt(double fraction) {
+  return static_cast<int>(
+      std::lround(std::clamp(fraction, 0.0, 1.0) * (BranchGuide::kSamples - 1)));
+}
+
+// Branch pairs (template, target) that are each other's cheapest (ArticulationOptions'
+// branch pulls). @p posed and @p target hold the guide's samples, both in the template's
+// frame; @p scale turns target lengths into template sizes.
+std::vector<std::pair<int, int>> PairBranches(const BranchGuide& guide,
+                                              const Eigen::Matrix3Xd& posed,
+                                              const Eigen::Matrix3Xd& target, double scale,
+                                              const ArticulationOptions& options) {
+  const int na = guide.num_template_branches(), nb = guide.num_target_branches();
+  const int out = SampleAt(0.75);
+  Eigen::MatrixXd cost = Eigen::MatrixXd::Constant(na, nb, std::numeric_limits<double>::infinity());
+  for (int a = 0; a < na; ++a) {
+    for (int b = 0; b < nb; ++b) {
+      const double la = guide.template_length[static_cast<std::size_t>(a)];
+      const double lb = guide.target_length[static_cast<std::size_t>(b)] / scale;
+      if (!(la > 0 && lb > 0) || std::max(la, lb) > options.branch_max_ratio * std::min(la, lb))
+        continue;
+      const double c = (posed.col(SampleColumn(a, 0)) - target.col(SampleColumn(b, 0))).norm() +
+                       (posed.col(SampleColumn(a, out)) - target.col(SampleColumn(b, out))).norm();
+      if (c <= options.branch_radius) cost(a, b) = c;
+    }
+  }
+  std::vector<std::pair<int, int>> pairs;
+  for (int a = 0; a < na; ++a) {
+    Eigen::Index b = 0, back = 0;
+    if (nb == 0 || !std::isfinite(cost.row(a).minCoeff(&b))) continue;
+    cost.col(b).minCoeff(&back);
+    if (back == a) pairs.emplace_back(a, static_cast<int>(b));
+  }
+  return pairs;
+}
+
 }  // namespace
+
+BranchGuide MakeBranchGuide(const TemplateModel& model, const SkeletonGraph& target_skeleton,
+                            const FeatureNodes& target_features) {
+  BranchGuide guide;
+  const std::vector<SkeletonBranch> mine = TerminalBranches(model.skeleton, model.features);
+  const std::vector<SkeletonBranch> theirs = TerminalBranches(target_skeleton, target_features);
+  constexpr int kSamples = BranchGuide::kSamples;
+  guide.template_rest.resize(3, static_cast<Eigen::Index>(mine.size()) * kSamples);
+  std::vector<std::vector<int>> support;
+  for (std::size_t a = 0; a < mine.size(); ++a) {
+    guide.template_length.push_back(mine[a].length());
+    for (int k = 0; k < kSamples; ++k) {
+      int node = 0;
+      guide.template_rest.col(SampleColumn(static_cast<int>(a), k)) =
+          PointAlong(model.skeleton, mine[a], static_cast<double>(k) / (kSamples - 1), &node);
+      support.push_back(static_cast<std::size_t>(node) < model.skeleton.support.size()
+                            ? model.skeleton.support[static_cast<std::size_t>(node)]
+                            : std::vector<int>{});
+    }
+  }
+  guide.template_weights =
+      PointWeights(guide.template_rest, support, model.graph, model.vertex_weights,
+                   static_cast<int>(model.terminal_weights.nodes.rows()));
+  guide.target_points.resize(3, static_cast<Eigen::Index>(theirs.size()) * kSamples);
+  for (std::size_t b = 0; b < theirs.size(); ++b) {
+    guide.target_length.push_back(theirs[b].length());
+    for (int k = 0; k < kSamples; ++k) {
+      guide.target_points.col(SampleColumn(static_cast<int>(b), k)) =
+          PointAlong(target_skeleton, theirs[b], static_cast<double>(k) / (kSamples - 1));
+    }
+  }
+  return guide;
+}
 
 std::vector<std::pair<int, int>> MutualNearestPairs(const Eigen::Matrix3Xd& a,
                                                     const Eigen::Matrix3Xd& b, double radius) {
@@ -80,7 +156,7 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
                                       const Eigen::Matrix3Xd& target_terminals,
                                       const DeformationState& start,
                                       const ArticulationOptions& options,
-                                      const Similarity& placement) {
+                                      const Similarity& placement, const BranchGuide* guide) {
   const auto begin = std::chrono::steady_clock::now();
   VB_DEMAND(target.cols() > 0 && target_index.size() == target.cols());
   VB_DEMAND(placement.Usable());
@@ -112,6 +188,17 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
   Eigen::Matrix3Xd terminals(3, target_terminals.cols());  // template frame
   for (Eigen::Index t = 0; t < terminals.cols(); ++t)
     terminals.col(t) = back(target_terminals.col(t));
+
+  // The target's branch samples in the template's frame.
+  const bool use_branches = guide != nullptr && options.branch_weight > 0 &&
+                            guide->num_template_branches() > 0 && guide->num_target_branches() > 0;
+  Eigen::Matrix3Xd branch_targets;
+  if (use_branches) {
+    branch_targets.resize(3, guide->target_points.cols());
+    for (Eigen::Index k = 0; k < branch_targets.cols(); ++k)
+      branch_targets.col(k) = back(guide->target_points.col(k));
+  }
+  double branch_weight = options.branch_weight;
 
   std::vector<PointConstraint> constraints;
   std::vector<double> forward(static_cast<std::size_t>(ns));
@@ -157,6 +244,25 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
         c.weight = per_pair * options.terminal_weight;
         constraints.push_back(std::move(c));
       }
+    }
+    if (use_branches) {
+      const Eigen::Matrix3Xd along =
+          DeformPoints(model.graph, guide->template_weights, guide->template_rest, result.state);
+      for (const auto& [a, b] :
+           PairBranches(*guide, along, branch_targets, placement.scale, options)) {
+        const double la = guide->template_length[static_cast<std::size_t>(a)];
+        const double lb = guide->target_length[static_cast<std::size_t>(b)] / placement.scale;
+        const double shorter = std::min(la, lb);
+        for (const double share : {0.5, 0.75, 1.0}) {
+          const Eigen::Index from = SampleColumn(a, SampleAt(share * shorter / la));
+          PointConstraint c =
+              ConstrainPoint(guide->template_weights, from, guide->template_rest.col(from),
+                             branch_targets.col(SampleColumn(b, SampleAt(share * shorter / lb))));
+          c.weight = per_pair * branch_weight;
+          constraints.push_back(std::move(c));
+        }
+      }
+      branch_weight *= options.branch_decay;
     }
     EmbeddedDeformationOptions deformation = options.deformation;
     deformation.w_rot *= stiffness;

@@ -7,6 +7,7 @@
 #include "morph/embedded_deformation.h"
 #include "morph/feature_association.h"
 #include "morph/point_index.h"
+#include "morph/skeleton_branches.h"
 #include "morph/template_model.h"
 
 namespace vb::morph {
@@ -42,6 +43,20 @@ struct ArticulationOptions {
   /// the bison's and spider's (docs/decisions.md).
   double terminal_radius = 0.12;
   double terminal_weight = 0.0;
+  /// Limbs along their skeleton branches (a BranchGuide given to ArticulateTemplate): each
+  /// round the posed template's branches and the target's are paired where each is the
+  /// other's cheapest, the cost being the distance between their roots plus that between
+  /// their points three quarters of the way out, within branch_radius, and their lengths
+  /// differ by at most branch_max_ratio times. A pair pulls the template branch's points a
+  /// half, three quarters and all of the way along the shorter of the two onto the target
+  /// branch's at the same arc lengths (a limb the shadow cut short pulls only as far as it is
+  /// seen), with branch_weight times a surface pair's weight, multiplied by branch_decay each
+  /// round. Surface pairs alone leave a limb that turned far at the nearest surface. 0 turns
+  /// it off.
+  double branch_weight = 2.0;
+  double branch_decay = 0.5;
+  double branch_radius = 0.4;
+  double branch_max_ratio = 1.5;
   /// The data weight per graph node: each pair's weight is w_data times the node count over
   /// the pair count, so the balance with the regularisers does not depend on the sampling.
   /// Conjugate gradients: with hundreds of pairs each coupling several nodes they reach the
@@ -53,6 +68,26 @@ struct ArticulationOptions {
       .function_tolerance = 1e-4,
       .deadline = {}};
 };
+
+/// Both skeletons' limbs (TerminalBranches), each sampled at kSamples evenly spaced arc
+/// lengths from its root to its tip, for ArticulationOptions' branch pulls.
+struct BranchGuide {
+  static constexpr int kSamples = 21;
+  /// Template side, normalised frame: kSamples columns per branch, root first.
+  Eigen::Matrix3Xd template_rest;
+  NodeWeights template_weights;         ///< eq. (10) weights of those points
+  std::vector<double> template_length;  ///< per branch, template sizes
+  /// Target side, in the target's frame and units, likewise.
+  Eigen::Matrix3Xd target_points;
+  std::vector<double> target_length;
+  int num_template_branches() const { return static_cast<int>(template_length.size()); }
+  int num_target_branches() const { return static_cast<int>(target_length.size()); }
+};
+
+/// The guide between @p model's skeleton and a target's (@p target_skeleton and the
+/// @p target_features extracted from it, in the target's frame).
+BranchGuide MakeBranchGuide(const TemplateModel& model, const SkeletonGraph& target_skeleton,
+                            const FeatureNodes& target_features);
 
 /// A pose of the template and how well it covers the target.
 struct ArticulationResult {
@@ -93,12 +128,14 @@ double TrimmedDisagreement(const Eigen::Matrix3Xd& a, const PointIndex& a_index,
 /// @param[in] placement the template's normalised frame -> the target's. A similarity keeps
 ///   nearest points nearest, so the fit is the same as on a target moved into the template's
 ///   frame. Pass `Similarity{}` for a target already there.
+/// @param guide the skeletons' limbs, for options.branch_weight (none: no branch pulls).
 /// @pre `placement.Usable()` and `placement.R` is a rotation.
 ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::Matrix3Xd& target,
                                       const PointIndex& target_index,
                                       const Eigen::Matrix3Xd& target_terminals,
                                       const DeformationState& start,
                                       const ArticulationOptions& options,
-                                      const Similarity& placement);
+                                      const Similarity& placement,
+                                      const BranchGuide* guide = nullptr);
 
 }  // namespace vb::morph

@@ -276,6 +276,9 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     }
     ArticulationOptions choice = options.articulation;
     choice.rounds = std::min(choice.rounds, options.choice_rounds);
+    // Branch pulls draw a turned placement's limbs onto branches as readily as the right
+    // one's, so the choice is made without them (docs/decisions.md).
+    choice.branch_weight = 0.0;
     // The fits are independent: each on one of the pool's threads.
     const auto fit_candidate = [&](int p) {
       const std::size_t k = picked[static_cast<std::size_t>(p)];
@@ -361,9 +364,12 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
         options.articulation.min_stiffness,
         options.articulation.stiffness_start *
             std::pow(options.articulation.stiffness_decay, options.choice_rounds));
+    const BranchGuide guide = rest.branch_weight > 0 && rest.rounds > 0
+                                  ? MakeBranchGuide(model, skeleton, result.target_features)
+                                  : BranchGuide{};
     ArticulationResult fit =
         ArticulateTemplate(model, target, target_index, result.target_features.terminals,
-                           articulated_states[chosen], rest, to_target);
+                           articulated_states[chosen], rest, to_target, &guide);
     result.state = std::move(fit.state);
     result.disagreement = fit.disagreement;
     result.deformation.usable = true;

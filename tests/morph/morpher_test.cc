@@ -100,14 +100,15 @@ TEST_F(MorpherTest, ClutterAroundTheCarcassIsLeftOut) {
   EXPECT_EQ(on_clutter.cleaning.detached, hook);
   EXPECT_GE(on_clutter.cleaning.strays, 200);
   EXPECT_LE(on_clutter.cleaning.strays, strays);
-  // Measured: 0.463 % against 0.475 % of the diagonal; 0.903 % without the cleaning.
+  // Measured: 0.488 % against 0.468 % of the diagonal; 0.542 % without the cleaning (0.903 %
+  // before the posture fit's limb pulls, which hold the limbs where the hook does not pull).
   EXPECT_LT(error(on_clutter), 1.1 * error(on_clean));
 
   MorphOptions off = Upright();
   off.clean.neighbours = 0;
   Morpher unclean(*model_, carcass_->annotations, off);
   const CarcassResult raw = unclean.Morph(cloud, {});
-  EXPECT_TRUE(!raw.ok || error(raw) > 1.5 * error(on_clean));
+  EXPECT_TRUE(!raw.ok || error(raw) > 1.1 * error(on_clean));
 }
 
 // The deadline reaches the solves on every thread: a cancelled morph stops early and says so.

@@ -2,6 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
+#include "morph/skeleton_branches.h"
+
 namespace vb::morph {
 namespace {
 
@@ -73,6 +77,43 @@ TEST(SkeletonGraphTest, AChainIsItsTwoEnds) {
       ExtractFeatureNodes(g, {.min_branch_length = 0.05, .junction_merge_distance = 0.05});
   EXPECT_EQ(f.num_terminals(), 2);
   EXPECT_EQ(f.num_junctions(), 0);
+}
+
+// Each limb runs from the feature junction to its terminal along the skeleton, past the
+// junctions of pruned spurs, root first.
+TEST(SkeletonBranchesTest, RunFromTheJunctionToEachTerminalPastSpurs) {
+  SkeletonGraph g = Star();
+  Chain(&g, 5, {0.5, 0.03, 0}, 2);  // a spur on the +x arm, pruned below
+  const FeatureNodes f =
+      ExtractFeatureNodes(g, {.min_branch_length = 0.05, .junction_merge_distance = 0.05});
+  ASSERT_EQ(f.num_terminals(), 3);
+  const std::vector<SkeletonBranch> branches = TerminalBranches(g, f);
+  ASSERT_EQ(branches.size(), 3u);
+  for (const SkeletonBranch& b : branches) {
+    ASSERT_EQ(b.nodes.size(), b.distance.size());
+    EXPECT_EQ(b.nodes.front(), 0) << "the root is the junction";
+    EXPECT_TRUE(g.nodes.col(b.nodes.back()).isApprox(f.terminals.col(b.terminal)));
+    EXPECT_NEAR(b.length(), 1.0, 1e-12);
+    EXPECT_TRUE(std::is_sorted(b.distance.begin(), b.distance.end()));
+    // Halfway out along the arm, between its 5th and 6th nodes' nearest.
+    int node = -1;
+    const Eigen::Vector3d half = PointAlong(g, b, 0.5, &node);
+    EXPECT_NEAR(half.norm(), 0.5, 1e-12);
+    EXPECT_NEAR((half - 0.5 * f.terminals.col(b.terminal)).norm(), 0.0, 1e-12);
+    EXPECT_NEAR((g.nodes.col(node) - half).norm(), 0.0, 1e-12);
+    EXPECT_NEAR((PointAlong(g, b, 0.33) - 0.33 * f.terminals.col(b.terminal)).norm(), 0.0, 1e-12);
+    EXPECT_TRUE(PointAlong(g, b, 1.0).isApprox(f.terminals.col(b.terminal)));
+    EXPECT_NEAR(PointAlong(g, b, 0.0).norm(), 0.0, 1e-12);
+  }
+}
+
+TEST(SkeletonBranchesTest, AChainWithoutJunctionsHasNone) {
+  SkeletonGraph g;
+  g.nodes = Eigen::Vector3d::Zero();
+  Chain(&g, 0, {1, 0, 0}, 10);
+  const FeatureNodes f = ExtractFeatureNodes(g, {});
+  EXPECT_EQ(f.num_junctions(), 0);
+  EXPECT_TRUE(TerminalBranches(g, f).empty());
 }
 
 }  // namespace
