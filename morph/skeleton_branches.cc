@@ -44,8 +44,8 @@ std::vector<SkeletonBranch> TerminalBranches(const SkeletonGraph& skeleton,
     int root = -1;
     for (int v = 0; v < n; ++v) {
       const auto s = static_cast<std::size_t>(v);
-      if (is_root[s] && std::isfinite(distance[s]) &&
-          distance[s] < std::numeric_limits<double>::max() &&
+      // Dijkstra leaves nodes it cannot reach at the largest double.
+      if (is_root[s] && distance[s] < std::numeric_limits<double>::max() &&
           (root < 0 || distance[s] < distance[static_cast<std::size_t>(root)]))
         root = v;
     }

@@ -112,14 +112,20 @@ TEST(PlanePointsTest, CorrectionRemovesTheCentroidsCurvatureBiasAndKeepsTheAvera
   }
 }
 
+// Points of the unit sphere @p on_sphere moved radially by Gaussian noise of @p sigma.
+Eigen::Matrix3Xd Roughened(const Eigen::Matrix3Xd& on_sphere, double sigma, unsigned seed) {
+  Eigen::Matrix3Xd points = on_sphere;
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> g(0.0, sigma);
+  for (Eigen::Index i = 0; i < points.cols(); ++i) points.col(i) *= 1.0 + g(rng);
+  return points;
+}
+
 // The points are shared among a pool's threads in blocks, each writing only its own
 // columns: the same normals to the last bit on any number of threads.
 TEST(EstimateNormalsTest, AreTheSameOnOneThreadAsOnSeveral) {
   const Eigen::Matrix3Xd outward = SpherePoints(20000, 11);
-  Eigen::Matrix3Xd points = outward;
-  std::mt19937_64 rng(12);
-  std::normal_distribution<double> g(0.0, 0.01);
-  for (Eigen::Index i = 0; i < points.cols(); ++i) points.col(i) *= 1.0 + g(rng);
+  const Eigen::Matrix3Xd points = Roughened(outward, 0.01, 12);
   const PointIndex index(points);
   const Eigen::Matrix3Xd alone = EstimateNormals(points, index, 12, 3, outward, outward);
   for (int threads : {2, 3}) {
@@ -132,10 +138,7 @@ TEST(EstimateNormalsTest, AreTheSameOnOneThreadAsOnSeveral) {
 // Likewise the plane points.
 TEST(PlanePointsTest, AreTheSameOnOneThreadAsOnSeveral) {
   const Eigen::Matrix3Xd normals = SpherePoints(20000, 5);
-  Eigen::Matrix3Xd points = normals;
-  std::mt19937_64 rng(9);
-  std::normal_distribution<double> g(0.0, 0.004);
-  for (Eigen::Index i = 0; i < points.cols(); ++i) points.col(i) *= 1.0 + g(rng);
+  const Eigen::Matrix3Xd points = Roughened(normals, 0.004, 9);
   const PointIndex index(points);
   for (bool correct : {false, true}) {
     const Eigen::Matrix3Xd alone = PlanePoints(points, normals, index, 10, 0.1, correct);
