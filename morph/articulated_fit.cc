@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 #include "io/error.h"
 
@@ -38,6 +39,24 @@ std::vector<int> Spread(Eigen::Index n, int wanted) {
   const Eigen::Index step = std::max<Eigen::Index>(1, n / std::max(1, wanted));
   for (Eigen::Index i = 0; i < n; i += step) out.push_back(static_cast<int>(i));
   return out;
+}
+
+// Whether two normals of either sign are within the angle whose cosine is @p min_cos; a zero
+// normal (no direction known) is compatible with any.
+bool FacingAlike(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double min_cos) {
+  const double scale = a.squaredNorm() * b.squaredNorm();
+  return scale == 0.0 || std::abs(a.dot(b)) >= min_cos * std::sqrt(scale);
+}
+
+// The nearest of the @p candidates points of @p index nearest to @p q whose normal faces as
+// @p normal does (FacingAlike); -1 when none of them does.
+int NearestFacingAlike(const PointIndex& index, const Eigen::Matrix3Xd& normals,
+                       const Eigen::Vector3d& q, const Eigen::Vector3d& normal, int candidates,
+                       double min_cos, std::vector<int>* found, std::vector<double>* distances) {
+  index.Nearest(q, candidates, found, distances);
+  for (int j : *found)
+    if (FacingAlike(normals.col(j), normal, min_cos)) return j;
+  return -1;
 }
 
 // Column of sample @p k of branch @p b in a guide's matrices.
@@ -156,7 +175,8 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
                                       const Eigen::Matrix3Xd& target_terminals,
                                       const DeformationState& start,
                                       const ArticulationOptions& options,
-                                      const Similarity& placement, const BranchGuide* guide) {
+                                      const Similarity& placement, const BranchGuide* guide,
+                                      const Eigen::Matrix3Xd* target_normals) {
   const auto begin = std::chrono::steady_clock::now();
   VB_DEMAND(target.cols() > 0 && target_index.size() == target.cols());
   VB_DEMAND(placement.Usable());
@@ -185,6 +205,19 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
   for (Eigen::Index k = 0; k < samples_there.cols(); ++k)
     target_samples.col(k) = back(samples_there.col(k));
 
+  // Normals, for pairs between surfaces facing alike: the template samples' at rest and the
+  // target samples' in the template's frame.
+  VB_DEMAND(target_normals == nullptr || target_normals->cols() == target.cols());
+  const bool facing = target_normals != nullptr && options.max_normal_angle_deg < 90.0 &&
+                      model.mesh.N.cols() == model.V.cols();
+  const double min_cos = std::cos(options.max_normal_angle_deg * std::numbers::pi / 180.0);
+  const int candidates = std::max(1, options.normal_candidates);
+  Eigen::Matrix3Xd rest_normals, target_sample_normals;
+  if (facing) {
+    rest_normals = model.mesh.N(Eigen::all, template_ids);
+    target_sample_normals = placement.R.transpose() * (*target_normals)(Eigen::all, target_ids);
+  }
+
   Eigen::Matrix3Xd terminals(3, target_terminals.cols());  // template frame
   for (Eigen::Index t = 0; t < terminals.cols(); ++t)
     terminals.col(t) = back(target_terminals.col(t));
@@ -205,16 +238,38 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
   Eigen::Matrix3Xd forward_partner(3, ns);  // template frame
   std::vector<double> backward(target_ids.size());
   std::vector<int> backward_partner(target_ids.size());
+  constexpr double kUnpaired = std::numeric_limits<double>::infinity();
+  std::vector<int> found;
+  std::vector<double> found_distances;
   double stiffness = options.stiffness_start;
   for (int round = 0; round < options.rounds; ++round) {
     const Eigen::Matrix3Xd posed = DeformPoints(model.graph, weights, rest, result.state);
     const PointIndex posed_index(posed);
+    // A sample without a partner is infinitely far: the farthest, never kept.
+    const Eigen::Matrix3Xd posed_normals =
+        facing ? DeformNormals(weights, rest_normals, result.state) : Eigen::Matrix3Xd();
     for (Eigen::Index i = 0; i < ns; ++i) {
-      forward_partner.col(i) = back(target.col(target_index.Nearest(placement(posed.col(i)))));
+      const Eigen::Vector3d there = placement(posed.col(i));
+      const int j = facing ? NearestFacingAlike(target_index, *target_normals, there,
+                                                placement.R * posed_normals.col(i), candidates,
+                                                min_cos, &found, &found_distances)
+                           : target_index.Nearest(there);
+      if (j < 0) {
+        forward[static_cast<std::size_t>(i)] = kUnpaired;
+        continue;
+      }
+      forward_partner.col(i) = back(target.col(j));
       forward[static_cast<std::size_t>(i)] = (forward_partner.col(i) - posed.col(i)).norm();
     }
     for (Eigen::Index k = 0; k < target_samples.cols(); ++k) {
-      const int i = posed_index.Nearest(target_samples.col(k));
+      const int i = facing ? NearestFacingAlike(posed_index, posed_normals, target_samples.col(k),
+                                                target_sample_normals.col(k), candidates, min_cos,
+                                                &found, &found_distances)
+                           : posed_index.Nearest(target_samples.col(k));
+      if (i < 0) {
+        backward[static_cast<std::size_t>(k)] = kUnpaired;
+        continue;
+      }
       backward_partner[static_cast<std::size_t>(k)] = i;
       backward[static_cast<std::size_t>(k)] = (target_samples.col(k) - posed.col(i)).norm();
     }
@@ -222,11 +277,13 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
     const double backward_limit = KeepLimit(backward, options.target_keep_fraction);
     constraints.clear();
     for (Eigen::Index i = 0; i < ns; ++i) {
-      if (forward[static_cast<std::size_t>(i)] > forward_limit) continue;
+      const double d = forward[static_cast<std::size_t>(i)];
+      if (d == kUnpaired || d > forward_limit) continue;
       constraints.push_back(ConstrainPoint(weights, i, rest.col(i), forward_partner.col(i)));
     }
     for (Eigen::Index k = 0; k < target_samples.cols(); ++k) {
-      if (backward[static_cast<std::size_t>(k)] > backward_limit) continue;
+      const double d = backward[static_cast<std::size_t>(k)];
+      if (d == kUnpaired || d > backward_limit) continue;
       const int i = backward_partner[static_cast<std::size_t>(k)];
       constraints.push_back(ConstrainPoint(weights, i, rest.col(i), target_samples.col(k)));
     }

@@ -35,6 +35,15 @@ struct ArticulationOptions {
   double stiffness_start = 1.0;
   double stiffness_decay = 0.5;
   double min_stiffness = 0.1;
+  /// A pair is made only between surfaces facing alike: the partner is the nearest of the
+  /// normal_candidates nearest points whose normal is within max_normal_angle_deg of the
+  /// sample's, either sign (a cloud's estimated normals have none); a sample with no such
+  /// partner makes no pair and counts as the farthest in the trimming. Nearness alone pairs
+  /// an arm with the flank it hangs beside. 90 turns it off.
+  double max_normal_angle_deg = 60.0;
+  int normal_candidates = 8;
+  /// Neighbours per principal-axis normal of a target given without normals.
+  int normal_neighbours = 10;
   /// Limb ends: each round, the template's terminals (posed) and the target's are paired as
   /// mutual nearest within terminal_radius, and each pair pulls with terminal_weight times a
   /// surface pair's weight; closest points alone cannot tell which limb a tip belongs to
@@ -118,10 +127,10 @@ double TrimmedDisagreement(const Eigen::Matrix3Xd& a, const PointIndex& a_index,
 
 /// Non-rigid closest-point fitting of the template's posture to a placed target: each round
 /// pairs template samples with their nearest target points and target samples with their
-/// nearest template samples, keeps the nearest pairs of each side, and solves the embedded
-/// deformation (eqs. 4-10) with them as point constraints, starting from @p start. The fit
-/// is in the template's normalised frame; the target stays in its own, so one kd-tree of it
-/// serves every placement tried.
+/// nearest template samples (given normals, the nearest facing alike), keeps the nearest
+/// pairs of each side, and solves the embedded deformation (eqs. 4-10) with them as point
+/// constraints, starting from @p start. The fit is in the template's normalised frame; the
+/// target stays in its own, so one kd-tree of it serves every placement tried.
 /// @param[in] target 3 by N points in the target's frame; @p target_index indexes them.
 /// @param[in] target_terminals 3 by T limb ends of the target's skeleton, in the target's
 ///   frame (may be empty).
@@ -129,13 +138,14 @@ double TrimmedDisagreement(const Eigen::Matrix3Xd& a, const PointIndex& a_index,
 ///   nearest points nearest, so the fit is the same as on a target moved into the template's
 ///   frame. Pass `Similarity{}` for a target already there.
 /// @param guide the skeletons' limbs, for options.branch_weight (none: no branch pulls).
+/// @param target_normals 3 by N normals of @p target, in its frame, of either sign (zero: no
+///   direction known, compatible with any), for options.max_normal_angle_deg (none: pairs by
+///   nearness alone).
 /// @pre `placement.Usable()` and `placement.R` is a rotation.
-ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::Matrix3Xd& target,
-                                      const PointIndex& target_index,
-                                      const Eigen::Matrix3Xd& target_terminals,
-                                      const DeformationState& start,
-                                      const ArticulationOptions& options,
-                                      const Similarity& placement,
-                                      const BranchGuide* guide = nullptr);
+ArticulationResult ArticulateTemplate(
+    const TemplateModel& model, const Eigen::Matrix3Xd& target, const PointIndex& target_index,
+    const Eigen::Matrix3Xd& target_terminals, const DeformationState& start,
+    const ArticulationOptions& options, const Similarity& placement,
+    const BranchGuide* guide = nullptr, const Eigen::Matrix3Xd* target_normals = nullptr);
 
 }  // namespace vb::morph

@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <vector>
 
 #include "io/error.h"
@@ -12,7 +13,7 @@ namespace vb::morph {
 Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointIndex& index, int k,
                                  int passes, const Eigen::Matrix3Xd& reference,
                                  const Eigen::Matrix3Xd& reference_normals, WorkerPool* pool) {
-  VB_DEMAND(k >= 3 && passes >= 1 && index.size() == points.cols() && reference.cols() >= 1 &&
+  VB_DEMAND(k >= 3 && passes >= 1 && index.size() == points.cols() &&
             reference.cols() == reference_normals.cols());
   const Eigen::Index n = points.cols();
   Eigen::Matrix3Xd normals(3, n);
@@ -52,7 +53,9 @@ Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointInde
     });
     moments.swap(widened);
   }
-  const PointIndex reference_index(reference);
+  const bool oriented = reference.cols() > 0;
+  std::unique_ptr<PointIndex> reference_index;
+  if (oriented) reference_index = std::make_unique<PointIndex>(reference);
   ForEachBlock(pool, n, kBlock, [&](Eigen::Index first, Eigen::Index last) {
     for (Eigen::Index i = first; i < last; ++i) {
       const auto m = moments.col(i);
@@ -62,7 +65,8 @@ Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointInde
       covariance = covariance / m[0] - mean * mean.transpose();
       Eigen::Vector3d normal =
           Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance).eigenvectors().col(0);
-      if (normal.dot(reference_normals.col(reference_index.Nearest(points.col(i)))) < 0)
+      if (oriented &&
+          normal.dot(reference_normals.col(reference_index->Nearest(points.col(i)))) < 0)
         normal = -normal;
       normals.col(i) = normal;
     }

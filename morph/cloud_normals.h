@@ -11,7 +11,8 @@ namespace vb::morph {
 /// Unit normals of a point cloud from principal axes (the direction of least spread),
 /// oriented to agree with the normal of the nearest @p reference point (a surface already
 /// close to the cloud, such as the posed template), so they point outward wherever the
-/// reference does.
+/// reference does. With no reference points the sign is arbitrary (for uses that compare
+/// directions only, such as the posture fit's normal compatibility).
 ///
 /// With @p passes = 1 the axes are those of each point's @p k nearest neighbours. Every
 /// further pass widens the neighbourhood: it replaces each point's moments (count, sum and
@@ -20,7 +21,7 @@ namespace vb::morph {
 /// k x p points around it. Noisy clouds need that many: the normal's error falls with the
 /// points averaged, and a pass costs k additions a point where a k x p nearest-neighbour
 /// query costs several times more.
-/// @param[in] points 3 by N; @param[in] reference, reference_normals 3 by M, M >= 1.
+/// @param[in] points 3 by N; @param[in] reference, reference_normals 3 by M, M >= 0.
 /// @pre k >= 3, passes >= 1, @p index over @p points.
 /// @param pool when given, the points are shared among its threads; the result is the same
 ///   on any number of threads.

@@ -12,6 +12,7 @@
 
 #include "geometry/mesh_measures.h"
 #include "io/error.h"
+#include "morph/cloud_normals.h"
 #include "morph/point_index.h"
 
 namespace vb::morph {
@@ -133,11 +134,29 @@ Eigen::Matrix3Xd EveryNth(const Eigen::Matrix3Xd& points, int wanted) {
   return out;
 }
 
+// The target's normals for the posture fit's pairing (ArticulationOptions::
+// max_normal_angle_deg): the given ones made unit (zero where one has no length), else
+// principal-axis normals of @p neighbours points, of either sign.
+Eigen::Matrix3Xd PostureNormals(const Eigen::Matrix3Xd& target, const PointIndex& index,
+                                const Eigen::Matrix3Xd* given, int neighbours, WorkerPool* pool) {
+  if (given != nullptr && given->cols() == target.cols() && given->allFinite()) {
+    Eigen::Matrix3Xd out(3, given->cols());
+    for (Eigen::Index i = 0; i < given->cols(); ++i) {
+      const double length = given->col(i).norm();
+      out.col(i) =
+          length > 1e-12 ? Eigen::Vector3d(given->col(i) / length) : Eigen::Vector3d::Zero();
+    }
+    return out;
+  }
+  return EstimateNormals(target, index, std::max(3, neighbours), 1, Eigen::Matrix3Xd(3, 0),
+                         Eigen::Matrix3Xd(3, 0), pool);
+}
+
 }  // namespace
 
 CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target,
                          const CoarseOptions& options, WorkerPool* pool,
-                         const PointIndex* given_index) {
+                         const PointIndex* given_index, const Eigen::Matrix3Xd* target_normals) {
   const auto start = std::chrono::steady_clock::now();
   CoarseResult result;
   if (target.cols() < 50) {
@@ -257,6 +276,10 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   // cannot tell a body facing forward from one facing back when the limbs differ.
   std::vector<double> articulated(candidates.size(), std::numeric_limits<double>::infinity());
   std::vector<DeformationState> articulated_states(candidates.size());
+  Eigen::Matrix3Xd posture_normals;  // for the posture fits' pairing; none: not used
+  const auto posture_normals_or_none = [&]() {
+    return posture_normals.cols() > 0 ? &posture_normals : nullptr;
+  };
   if (options.articulated_candidates > 0 && !candidates.empty()) {
     std::vector<std::size_t> order(candidates.size());
     for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
@@ -274,6 +297,10 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
       }
       if (distinct) picked.push_back(k);
     }
+    if (options.articulation.max_normal_angle_deg < 90.0) {
+      posture_normals = PostureNormals(target, target_index, target_normals,
+                                       options.articulation.normal_neighbours, pool);
+    }
     ArticulationOptions choice = options.articulation;
     choice.rounds = std::min(choice.rounds, options.choice_rounds);
     // Branch pulls draw a turned placement's limbs onto branches as readily as the right
@@ -285,7 +312,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
       ArticulationResult fit =
           ArticulateTemplate(model, target, target_index, result.target_features.terminals,
                              DeformationState::Identity(model.graph.num_nodes()), choice,
-                             candidates[k].from_to);
+                             candidates[k].from_to, nullptr, posture_normals_or_none());
       if (!fit.ok) return;
       articulated[k] = fit.disagreement;
       articulated_states[k] = std::move(fit.state);
@@ -367,9 +394,9 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     const BranchGuide guide = rest.branch_weight > 0 && rest.rounds > 0
                                   ? MakeBranchGuide(model, skeleton, result.target_features)
                                   : BranchGuide{};
-    ArticulationResult fit =
-        ArticulateTemplate(model, target, target_index, result.target_features.terminals,
-                           articulated_states[chosen], rest, to_target, &guide);
+    ArticulationResult fit = ArticulateTemplate(
+        model, target, target_index, result.target_features.terminals, articulated_states[chosen],
+        rest, to_target, &guide, posture_normals_or_none());
     result.state = std::move(fit.state);
     result.disagreement = fit.disagreement;
     result.deformation.usable = true;

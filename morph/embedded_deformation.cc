@@ -264,4 +264,29 @@ Eigen::Matrix3Xd DeformPoints(const DeformationGraph& graph, const NodeWeights& 
   return out;
 }
 
+Eigen::Matrix3Xd DeformNormals(const NodeWeights& weights, const Eigen::Matrix3Xd& rest_normals,
+                               const DeformationState& state) {
+  VB_DEMAND(weights.nodes.cols() == rest_normals.cols());
+  // det(A) A^-T, column by column: the cross products of A's columns.
+  std::vector<Eigen::Matrix3d> cofactors(state.R.size());
+  for (std::size_t j = 0; j < state.R.size(); ++j) {
+    const Eigen::Matrix3d A = state.rotation(static_cast<int>(j));
+    cofactors[j].col(0) = A.col(1).cross(A.col(2));
+    cofactors[j].col(1) = A.col(2).cross(A.col(0));
+    cofactors[j].col(2) = A.col(0).cross(A.col(1));
+  }
+  Eigen::Matrix3Xd out = Eigen::Matrix3Xd::Zero(3, rest_normals.cols());
+  for (Eigen::Index i = 0; i < rest_normals.cols(); ++i) {
+    for (Eigen::Index k = 0; k < weights.nodes.rows(); ++k) {
+      const int j = weights.nodes(k, i);
+      if (j < 0) continue;
+      out.col(i) +=
+          weights.weights(k, i) * (cofactors[static_cast<std::size_t>(j)] * rest_normals.col(i));
+    }
+    const double length = out.col(i).norm();
+    out.col(i) = length > 1e-12 ? Eigen::Vector3d(out.col(i) / length) : Eigen::Vector3d::Zero();
+  }
+  return out;
+}
+
 }  // namespace vb::morph

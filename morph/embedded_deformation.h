@@ -99,4 +99,12 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
 Eigen::Matrix3Xd DeformPoints(const DeformationGraph& graph, const NodeWeights& weights,
                               const Eigen::Matrix3Xd& rest, const DeformationState& state);
 
+/// The normals of the surface DeformPoints moves: each node turns a normal by the inverse
+/// transpose of its matrix (Sumner et al.'s rule; the cofactor matrix here, which has the same
+/// direction and needs no inverse), blended with the same weights and made unit.
+/// @param[in] rest_normals 3 by N unit normals; @param[in] weights K by N node influences.
+/// A normal whose blend vanishes (nodes that fold it away) comes out zero.
+Eigen::Matrix3Xd DeformNormals(const NodeWeights& weights, const Eigen::Matrix3Xd& rest_normals,
+                               const DeformationState& state);
+
 }  // namespace vb::morph

@@ -86,7 +86,8 @@ CoarseResult CleanAndAlignCoarse(const TemplateModel& model, const Eigen::Matrix
   // too (it refers to `target`, which the cleaned copy equals).
   std::unique_ptr<PointIndex> index;
   *cleaned = CleanTarget(target, normals, clean, &index, pool);
-  return AlignCoarse(model, index != nullptr ? target : cleaned->points, coarse, pool, index.get());
+  return AlignCoarse(model, index != nullptr ? target : cleaned->points, coarse, pool, index.get(),
+                     cleaned->normals.cols() > 0 ? &cleaned->normals : nullptr);
 }
 
 CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& annotations,

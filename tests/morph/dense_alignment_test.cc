@@ -52,6 +52,16 @@ TEST(EstimateNormalsTest, PointsOutwardOnASphere) {
   EXPECT_GE(outward, static_cast<int>(P.cols()) - 2);
 }
 
+TEST(EstimateNormalsTest, WithoutAReferenceAreTheSameLinesOfEitherSign) {
+  const Eigen::Matrix3Xd P = SpherePoints(3000, 1);
+  const PointIndex index(P);
+  const Eigen::Matrix3Xd oriented = EstimateNormals(P, index, 16, 1, P, P);
+  const Eigen::Matrix3Xd either =
+      EstimateNormals(P, index, 16, 1, Eigen::Matrix3Xd(3, 0), Eigen::Matrix3Xd(3, 0));
+  for (Eigen::Index i = 0; i < P.cols(); ++i)
+    EXPECT_NEAR(std::abs(either.col(i).dot(oriented.col(i))), 1.0, 1e-12);
+}
+
 TEST(EstimateNormalsTest, MorePassesAverageMoreNoiseAwayAndAgreeWithOneWideQuery) {
   // 20,000 points on a unit sphere, about 0.025 apart, moved along the normal by sigma 0.02:
   // noise as large as the spacing, where 24 neighbours read the normal badly.

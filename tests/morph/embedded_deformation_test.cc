@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <cmath>
+#include <numbers>
 
 #include "tests/support/test_meshes.h"
 
@@ -36,6 +38,37 @@ TEST_F(EmbeddedDeformationTest, WithoutDataNothingMoves) {
   const SolveSummary summary = SolveEmbeddedDeformation(graph_, {}, {}, &state);
   EXPECT_TRUE(summary.usable);
   EXPECT_LT((DeformPoints(graph_, weights_, mesh_.V, state) - mesh_.V).cwiseAbs().maxCoeff(), 1e-9);
+}
+
+TEST(DeformNormalsTest, TurnsNormalsByTheInverseTransposeOfEachNode) {
+  // Two nodes; point 0 moved by node 0 alone, point 1 by both, point 2 by none.
+  NodeWeights weights;
+  weights.nodes.resize(2, 3);
+  weights.weights.resize(2, 3);
+  weights.nodes << 0, 0, -1, -1, 1, -1;
+  weights.weights << 1.0, 0.5, 0.0, 0.0, 0.5, 0.0;
+  DeformationState state = DeformationState::Identity(2);
+  const Eigen::Vector3d n = Eigen::Vector3d(1, 1, 0).normalized();
+  Eigen::Matrix3Xd normals(3, 3);
+  normals << n, n, n;
+  // Identity: unchanged, except where no node acts (zero).
+  Eigen::Matrix3Xd turned = DeformNormals(weights, normals, state);
+  EXPECT_LT((turned.leftCols(2) - normals.leftCols(2)).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_EQ(turned.col(2), Eigen::Vector3d::Zero());
+  // Node 0 stretches x twice: a surface x = y then runs along (2, 1, 0) and its normal is
+  // A^-T n ~ (1, 2, 0), not A n ~ (2, 1, 0). Node 1 turns 90 degrees about z.
+  Eigen::Matrix<double, 3, 3, Eigen::RowMajor> stretch = Eigen::Vector3d(2, 1, 1).asDiagonal();
+  state.R[0] = Eigen::Map<Eigen::Matrix<double, 9, 1>>(stretch.data());
+  Eigen::Matrix<double, 3, 3, Eigen::RowMajor> turn =
+      Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  state.R[1] = Eigen::Map<Eigen::Matrix<double, 9, 1>>(turn.data());
+  turned = DeformNormals(weights, normals, state);
+  const Eigen::Vector3d stretched = Eigen::Vector3d(1, 2, 0).normalized();
+  EXPECT_LT((turned.col(0) - stretched).norm(), 1e-12);
+  // Point 1: the weighted blend of the two nodes' cofactor images (det 2 and 1), made unit.
+  const Eigen::Vector3d blend =
+      (0.5 * 2.0 * Eigen::Vector3d(0.5, 1, 0) / std::sqrt(2.0) + 0.5 * (turn * n)).normalized();
+  EXPECT_LT((turned.col(1) - blend).norm(), 1e-12);
 }
 
 TEST_F(EmbeddedDeformationTest, RecoversARigidMotion) {
