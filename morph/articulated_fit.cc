@@ -238,6 +238,7 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
   Eigen::Matrix3Xd forward_partner(3, ns);  // template frame
   std::vector<double> backward(target_ids.size());
   std::vector<int> backward_partner(target_ids.size());
+  // A sample without a partner is infinitely far: the farthest, never kept.
   constexpr double kUnpaired = std::numeric_limits<double>::infinity();
   std::vector<int> found;
   std::vector<double> found_distances;
@@ -245,7 +246,6 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
   for (int round = 0; round < options.rounds; ++round) {
     const Eigen::Matrix3Xd posed = DeformPoints(model.graph, weights, rest, result.state);
     const PointIndex posed_index(posed);
-    // A sample without a partner is infinitely far: the farthest, never kept.
     const Eigen::Matrix3Xd posed_normals =
         facing ? DeformNormals(weights, rest_normals, result.state) : Eigen::Matrix3Xd();
     for (Eigen::Index i = 0; i < ns; ++i) {

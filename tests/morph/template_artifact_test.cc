@@ -8,6 +8,7 @@
 #include <fstream>
 #include <functional>
 #include <limits>
+#include <regex>
 #include <sstream>
 
 #include "io/error.h"
@@ -165,6 +166,22 @@ TEST(MorphProfileTest, EveryDefaultLiesInItsBoundsAndEveryKeyIsOneMember) {
   std::sort(names.begin(), names.end());
   EXPECT_EQ(std::adjacent_find(names.begin(), names.end()), names.end());
   EXPECT_EQ(FindProfileKey("dense.nosuch"), nullptr);
+}
+
+TEST(MorphProfileTest, TheDocsCountTheKeysThereAre) {
+  // Every "(N keys" / "N keys of" the method and the operations guide state.
+  const std::regex count(R"((\d+) keys)");
+  for (const char* doc : {"docs/method.md", "docs/operations.md"}) {
+    std::ifstream in(std::string(VB_SOURCE_DIR) + "/" + doc);
+    ASSERT_TRUE(in) << doc;
+    std::stringstream text;
+    text << in.rdbuf();
+    const std::string all = text.str();
+    int found = 0;
+    for (std::sregex_iterator m(all.begin(), all.end(), count), end; m != end; ++m, ++found)
+      EXPECT_EQ(std::stoul((*m)[1]), ProfileKeys().size()) << doc << ": " << m->str();
+    EXPECT_GE(found, 1) << doc;
+  }
 }
 
 }  // namespace
