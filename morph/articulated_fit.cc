@@ -12,8 +12,10 @@
 namespace vb::morph {
 namespace {
 
-// The value below which the nearest @p keep_fraction of @p d lie.
+// The value below which the nearest @p keep_fraction of the finite values of @p d lie (an
+// infinite one is a sample without a partner).
 double KeepLimit(std::vector<double> d, double keep_fraction) {
+  std::erase(d, std::numeric_limits<double>::infinity());
   if (d.empty()) return 0.0;
   const auto cut = static_cast<std::size_t>(keep_fraction * static_cast<double>(d.size() - 1));
   std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(cut), d.end());
@@ -238,7 +240,7 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
   Eigen::Matrix3Xd forward_partner(3, ns);  // template frame
   std::vector<double> backward(target_ids.size());
   std::vector<int> backward_partner(target_ids.size());
-  // A sample without a partner is infinitely far: the farthest, never kept.
+  // The distance of a sample without a partner: left out of the trimming, never kept.
   constexpr double kUnpaired = std::numeric_limits<double>::infinity();
   std::vector<int> found;
   std::vector<double> found_distances;

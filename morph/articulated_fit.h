@@ -35,14 +35,17 @@ struct ArticulationOptions {
   double stiffness_start = 1.0;
   double stiffness_decay = 0.5;
   double min_stiffness = 0.1;
-  /// A pair is made only between surfaces facing alike: the partner is the nearest of the
+  /// When the target's normals are given (ArticulateTemplate's target_normals), a pair is
+  /// made only between surfaces facing alike: the partner is the nearest of the
   /// normal_candidates nearest points whose normal is within max_normal_angle_deg of the
-  /// sample's, either sign (a cloud's estimated normals have none); a sample with no such
-  /// partner makes no pair and counts as the farthest in the trimming. Nearness alone pairs
-  /// an arm with the flank it hangs beside. 90 turns it off.
+  /// sample's, either sign (a cloud's estimated normals have none). A sample with no such
+  /// partner makes no pair, and the trimming above keeps its fraction of the pairs made.
+  /// Nearness alone pairs an arm with the flank it hangs beside. 90 turns it off; small
+  /// angles leave few pairs (bounds in the profile: 1 to 90 degrees).
   double max_normal_angle_deg = 60.0;
   int normal_candidates = 8;
-  /// Neighbours per principal-axis normal of a target given without normals.
+  /// AlignCoarse: neighbours per principal-axis normal of a target given without (usable)
+  /// normals, estimated once per job for every candidate's fit.
   int normal_neighbours = 10;
   /// Limb ends: each round, the template's terminals (posed) and the target's are paired as
   /// mutual nearest within terminal_radius, and each pair pulls with terminal_weight times a
@@ -138,9 +141,9 @@ double TrimmedDisagreement(const Eigen::Matrix3Xd& a, const PointIndex& a_index,
 ///   nearest points nearest, so the fit is the same as on a target moved into the template's
 ///   frame. Pass `Similarity{}` for a target already there.
 /// @param guide the skeletons' limbs, for options.branch_weight (none: no branch pulls).
-/// @param target_normals 3 by N normals of @p target, in its frame, of either sign (zero: no
-///   direction known, compatible with any), for options.max_normal_angle_deg (none: pairs by
-///   nearness alone).
+/// @param target_normals 3 by N unit normals of @p target, in its frame, of either sign (zero:
+///   no direction known, compatible with any), for options.max_normal_angle_deg. None, or a
+///   template without vertex normals: pairs by nearness alone.
 /// @pre `placement.Usable()` and `placement.R` is a rotation.
 ArticulationResult ArticulateTemplate(
     const TemplateModel& model, const Eigen::Matrix3Xd& target, const PointIndex& target_index,

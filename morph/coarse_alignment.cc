@@ -135,16 +135,17 @@ Eigen::Matrix3Xd EveryNth(const Eigen::Matrix3Xd& points, int wanted) {
 }
 
 // The target's normals for the posture fit's pairing (ArticulationOptions::
-// max_normal_angle_deg): the given ones made unit (zero where one has no length), else
-// principal-axis normals of @p neighbours points, of either sign.
+// max_normal_angle_deg): the given ones made unit (zero, "no direction known", where one has
+// no length or is not finite), else principal-axis normals of @p neighbours points, of either
+// sign.
 Eigen::Matrix3Xd PostureNormals(const Eigen::Matrix3Xd& target, const PointIndex& index,
                                 const Eigen::Matrix3Xd* given, int neighbours, WorkerPool* pool) {
-  if (given != nullptr && given->cols() == target.cols() && given->allFinite()) {
+  if (given != nullptr && given->cols() == target.cols()) {
     Eigen::Matrix3Xd out(3, given->cols());
     for (Eigen::Index i = 0; i < given->cols(); ++i) {
       const double length = given->col(i).norm();
-      out.col(i) =
-          length > 1e-12 ? Eigen::Vector3d(given->col(i) / length) : Eigen::Vector3d::Zero();
+      out.col(i) = std::isfinite(length) && length > 1e-12 ? Eigen::Vector3d(given->col(i) / length)
+                                                           : Eigen::Vector3d::Zero();
     }
     return out;
   }

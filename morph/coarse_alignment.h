@@ -101,8 +101,9 @@ struct CoarseResult {
 /// @param pool when given, the candidate placements' scoring, rigid refinement and posture
 ///   fits share its threads; the result is the same on any number of threads.
 /// @param target_index a kd-tree over @p target the caller already has (none: one is built).
-/// @param target_normals 3 by N normals of @p target, of any sign and length (none, or not
-///   finite: the posture fit estimates its own from the points).
+/// @param target_normals 3 by N normals of @p target, of any sign and length; a zero or
+///   non-finite column means no direction known there. None, or another column count: the
+///   posture fit estimates its own from the points.
 CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target,
                          const CoarseOptions& options = {}, WorkerPool* pool = nullptr,
                          const PointIndex* target_index = nullptr,

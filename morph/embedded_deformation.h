@@ -99,11 +99,13 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
 Eigen::Matrix3Xd DeformPoints(const DeformationGraph& graph, const NodeWeights& weights,
                               const Eigen::Matrix3Xd& rest, const DeformationState& state);
 
-/// The normals of the surface DeformPoints moves: each node turns a normal by the inverse
-/// transpose of its matrix (Sumner et al.'s rule; the cofactor matrix here, which has the same
-/// direction and needs no inverse), blended with the same weights and made unit.
-/// @param[in] rest_normals 3 by N unit normals; @param[in] weights K by N node influences.
-/// A normal whose blend vanishes (nodes that fold it away) comes out zero.
+/// The normals of the surface DeformPoints moves: each node turns a normal by its matrix's
+/// cofactor matrix, det(A) A^-T (Sumner et al.'s inverse-transpose rule without the inverse,
+/// so each node also counts by its determinant), blended with DeformPoints' weights and made
+/// unit. A node that folds space (det < 0) turns normals inside out; a normal whose blend
+/// vanishes comes out zero.
+/// @param[in] rest_normals 3 by N normals (any length; the result is unit or zero).
+/// @param[in] weights K by N node influences.
 Eigen::Matrix3Xd DeformNormals(const NodeWeights& weights, const Eigen::Matrix3Xd& rest_normals,
                                const DeformationState& state);
 

@@ -51,7 +51,7 @@ const std::array kKeys = {
     VB_PROFILE_KEY(coarse.articulation.min_stiffness, kWeight, 1e-5, 1e4, false, "posture fit: multiplier's floor"),
     VB_PROFILE_KEY(coarse.articulation.terminal_radius, kSize, 0.0, 1.0, false, "posture fit: limb ends paired within"),
     VB_PROFILE_KEY(coarse.articulation.terminal_weight, kWeight, 0.0, 1e4, false, "posture fit: limb-end pull (0: off)"),
-    VB_PROFILE_KEY(coarse.articulation.max_normal_angle_deg, "degrees", 0.0, 90.0, false, "posture fit: pairs face alike within (90: off)"),
+    VB_PROFILE_KEY(coarse.articulation.max_normal_angle_deg, "degrees", 1.0, 90.0, false, "posture fit: pairs face alike within (90: off)"),
     VB_PROFILE_KEY(coarse.articulation.normal_candidates, kCount, 1, 64, false, "posture fit: nearest points searched for one facing alike"),
     VB_PROFILE_KEY(coarse.articulation.normal_neighbours, kCount, 3, 500, false, "posture fit: neighbours of a cloud's normals"),
     VB_PROFILE_KEY(coarse.articulation.branch_weight, kWeight, 0.0, 1e4, false, "posture fit: pull along paired limbs, chosen placement (0: off)"),

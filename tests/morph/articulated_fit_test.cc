@@ -118,7 +118,8 @@ TEST_F(ArticulateTemplateTest, FitsATargetLeftInItsOwnFrameAsOneBroughtIntoTheTe
 TEST_F(ArticulateTemplateTest, NormalsKeepAFinBesideTheSurfaceFromPullingIt) {
   // A posed lamb with a fin of points standing out of one flank, square to it, as an arm
   // hanging beside a body stands to its flank: near the fin's root the two are close but
-  // face apart.
+  // face apart. The target is handed over in a frame of its own (turned, moved, 2.5 times
+  // larger), its normals with every other one reversed (a cloud's have no sign).
   const Case c = Posed(1000003u);
   geometry::TriangleMesh posed{c.truth, model_->mesh.F, {}};
   posed.N = geometry::VertexNormals(posed);
@@ -127,17 +128,25 @@ TEST_F(ArticulateTemplateTest, NormalsKeepAFinBesideTheSurfaceFromPullingIt) {
   const Eigen::Vector3d out = posed.N.col(root);
   const Eigen::Vector3d along = out.unitOrthogonal();
   const int rows = 40, columns = 40;
-  Eigen::Matrix3Xd target(3, c.truth.cols() + rows * columns);
-  Eigen::Matrix3Xd normals(3, target.cols());
-  target.leftCols(c.truth.cols()) = c.truth;
-  normals.leftCols(c.truth.cols()) = posed.N;
+  Eigen::Matrix3Xd here(3, c.truth.cols() + rows * columns);
+  Eigen::Matrix3Xd here_normals(3, here.cols());
+  here.leftCols(c.truth.cols()) = c.truth;
+  here_normals.leftCols(c.truth.cols()) = posed.N;
   for (int a = 0; a < rows; ++a) {
     for (int b = 0; b < columns; ++b) {
       const Eigen::Index k = c.truth.cols() + a * columns + b;
-      target.col(k) = c.truth.col(root) + (0.01 + 0.15 * a / rows) * out +
-                      0.15 * (b / static_cast<double>(columns) - 0.5) * along;
-      normals.col(k) = out.cross(along);
+      here.col(k) = c.truth.col(root) + (0.01 + 0.15 * a / rows) * out +
+                    0.15 * (b / static_cast<double>(columns) - 0.5) * along;
+      here_normals.col(k) = out.cross(along);
     }
+  }
+  const Similarity placement{
+      2.5, Eigen::AngleAxisd(1.1, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix(),
+      Eigen::Vector3d(0.4, -3.0, 1.5)};
+  Eigen::Matrix3Xd target(3, here.cols()), normals(3, here.cols());
+  for (Eigen::Index i = 0; i < here.cols(); ++i) {
+    target.col(i) = placement(here.col(i));
+    normals.col(i) = (i % 2 == 0 ? 1.0 : -1.0) * (placement.R * here_normals.col(i));
   }
   std::vector<int> near;
   for (Eigen::Index i = 0; i < c.truth.cols(); ++i)
@@ -145,17 +154,25 @@ TEST_F(ArticulateTemplateTest, NormalsKeepAFinBesideTheSurfaceFromPullingIt) {
   const PointIndex index(target);
   const DeformationState identity = DeformationState::Identity(model_->graph.num_nodes());
   const Eigen::Matrix3Xd none(3, 0);
-  const ArticulationResult plain = ArticulateTemplate(*model_, target, index, none, identity,
-                                                      ArticulationOptions{}, Similarity{});
-  const ArticulationResult facing =
-      ArticulateTemplate(*model_, target, index, none, identity, ArticulationOptions{},
-                         Similarity{}, nullptr, &normals);
+  const ArticulationResult plain =
+      ArticulateTemplate(*model_, target, index, none, identity, ArticulationOptions{}, placement);
+  const ArticulationResult facing = ArticulateTemplate(
+      *model_, target, index, none, identity, ArticulationOptions{}, placement, nullptr, &normals);
   ASSERT_TRUE(plain.ok && facing.ok);
+  // The same fit as on the target in the template's frame with its normals all outward: the
+  // frames and the signs do not matter.
+  const PointIndex here_index(here);
+  const ArticulationResult facing_here =
+      ArticulateTemplate(*model_, here, here_index, none, identity, ArticulationOptions{},
+                         Similarity{}, nullptr, &here_normals);
+  ASSERT_TRUE(facing_here.ok);
+  EXPECT_NEAR(Error(facing.state, c.truth), Error(facing_here.state, c.truth), 1e-6);
   // Measured near the root (within 0.15 template sizes): by nearness alone the fin drags the
   // flank out to 3.2 times its rigid error (0.0386 against 0.0120); facing alike, 0.68 of it
-  // (0.0082), and over the whole template 0.0088 against 0.0136.
+  // (0.0081), and over the whole template 0.0088 against 0.0136.
   const double rigid_near = Error(identity, c.truth, near);
-  EXPECT_GT(Error(plain.state, c.truth, near), 2.0 * rigid_near);
+  const double plain_near = Error(plain.state, c.truth, near);
+  EXPECT_GT(plain_near, 2.5 * rigid_near);
   EXPECT_LT(Error(facing.state, c.truth, near), 0.8 * rigid_near);
   EXPECT_LT(Error(facing.state, c.truth), 0.8 * Error(plain.state, c.truth));
 }
