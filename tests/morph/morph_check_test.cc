@@ -39,7 +39,8 @@ TEST_F(MorphCheckTest, TrustsAGoodMorphAndDistrustsAnUpsideDownOne) {
     if (!wrong.ok) continue;  // no such placement among the candidates: nothing to send
     ++wrong_morphs;
     EXPECT_GT(MeanErrorRelative(wrong, truth), 0.05) << "seed " << seed;
-    EXPECT_LT(wrong.check.confidence, 0.6) << "seed " << seed;
+    // Measured 0.05 and 0.14 (the daemon sends from 0.6).
+    EXPECT_LT(wrong.check.confidence, 0.25) << "seed " << seed;
     EXPECT_FALSE(wrong.check.concern.empty());
     for (const TransferredCut& cut : wrong.cuts) EXPECT_LT(cut.confidence, 0.6) << cut.name;
   }
