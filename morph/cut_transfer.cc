@@ -41,7 +41,6 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
   const Eigen::Matrix3Xd& morphed_normals =
       morphed.has_normals() ? morphed.N
                             : (computed_morphed_normals = geometry::VertexNormals(morphed));
-  Eigen::Matrix3Xd plane_points;  // of the target, made when the first band fit needs them
   // How far out along the normal a noisy target's plane point paired with each template
   // vertex is moved, template units (see unbias_plane_points); empty on a clean target.
   Eigen::VectorXd outward;
@@ -53,6 +52,9 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
   }
   std::vector<TransferredCut> out;
   std::vector<CutReading> readings;
+  // Per cut, the turn of its surface band when a band fit follows (else none).
+  std::vector<std::optional<Eigen::Matrix3d>> band_turns;
+  const double band = slide_band * template_size;
   for (const io::CutAnnotation& cut : annotations.cuts) {
     TransferredCut t;
     CutReading reading;
@@ -63,44 +65,71 @@ std::vector<TransferredCut> TransferCuts(const io::Annotations& annotations,
     t.line = std::move(carried.points);
     t.coverage = carried.coverage;
     t.gap = carried.gap;
+    std::optional<Eigen::Matrix3d> band_turn;
     if (t.line.size() >= 3) {
-      const LineExtent& extent = reading.extent;
       t.plane = FitPlane(t.line);
       double sum = 0.0;
       for (const Eigen::Vector3d& p : t.line) sum += std::pow(t.plane.SignedDistance(p), 2);
       t.fit_rms = std::sqrt(sum / static_cast<double>(t.line.size()));
       if (options.normal_band > 0) {
         if (const std::optional<Eigen::Matrix3d> turn =
-                SurfaceTurn(cut, extent, rest, rest_normals, morphed_normals,
+                SurfaceTurn(cut, reading.extent, rest, rest_normals, morphed_normals,
                             options.normal_band * template_size, options.normal_max_lean,
                             options.min_band_vertices)) {
           t.plane.normal = (*turn * cut.plane.normal).normalized();
           t.oriented_by_normals = true;
           if (slide_band > 0) {
-            const double band = slide_band * template_size;
-            reading.scale = BandScale(cut, extent, rest, morphed, band);
-            if (plane_points.cols() == 0) {
-              plane_points = PlanePoints(target, target_normals, index, plane_neighbours,
-                                         options.slide_plane_radius * size, true, pool);
-            }
-            if (reading.scale > 0) {
-              reading.band =
-                  FitBandSlide(cut, extent, rest, rest_normals, *turn, reading.scale, t.plane.point,
-                               plane_points, band, options.slide_margin * template_size,
-                               options.slide_stretch_sigma, options.slide_sigma * template_size,
-                               options.slide_tilt_sigma, options.slide_plane_neighbours, outward);
-            }
-            if (reading.band) {
-              t.band_slide = reading.scale * reading.band->along;
-              t.band_slide_error = reading.scale * reading.band->error;
-            }
+            reading.scale = BandScale(cut, reading.extent, rest, morphed, band);
+            if (reading.scale > 0) band_turn = turn;
           }
         }
       }
     }
     out.push_back(std::move(t));
     readings.push_back(std::move(reading));
+    band_turns.push_back(band_turn);
   }
+
+  // The band fits read plane points in their bands only; those are made for the target points
+  // that can reach a band: a plane point lies within twice the plane radius of its point (the
+  // centroid within one radius, the curvature correction at most one more).
+  const double plane_radius = options.slide_plane_radius * size;
+  std::vector<int> near_a_band;
+  for (Eigen::Index j = 0; j < target.cols(); ++j) {
+    for (std::size_t c = 0; c < out.size(); ++c) {
+      if (!band_turns[c]) continue;
+      const CutReading& reading = readings[c];
+      const Eigen::Vector3d from_centre = target.col(j) - out[c].plane.point;
+      const Eigen::Vector3d p =
+          reading.extent.centre + band_turns[c]->transpose() * from_centre / reading.scale;
+      const double reach = 2.0 * plane_radius / reading.scale * (1.0 + 1e-6);
+      if (NearTheCut(annotations.cuts[c], reading.extent, p, band + reach)) {
+        near_a_band.push_back(static_cast<int>(j));
+        break;
+      }
+    }
+  }
+  const Eigen::Matrix3Xd plane_points =
+      near_a_band.empty() ? Eigen::Matrix3Xd()
+                          : PlanePointsOf(target, target_normals, index, plane_neighbours,
+                                          plane_radius, true, near_a_band, pool);
+  // The cuts' band fits are independent: each on one of the pool's threads, each writing only
+  // its own cut's entries.
+  ForEach(pool, static_cast<int>(out.size()), [&](int index_of_cut) {
+    const auto c = static_cast<std::size_t>(index_of_cut);
+    if (!band_turns[c]) return;
+    TransferredCut& t = out[c];
+    CutReading& reading = readings[c];
+    reading.band = FitBandSlide(annotations.cuts[c], reading.extent, rest, rest_normals,
+                                *band_turns[c], reading.scale, t.plane.point, plane_points, band,
+                                options.slide_margin * template_size, options.slide_stretch_sigma,
+                                options.slide_sigma * template_size, options.slide_tilt_sigma,
+                                options.slide_plane_neighbours, outward);
+    if (reading.band) {
+      t.band_slide = reading.scale * reading.band->along;
+      t.band_slide_error = reading.scale * reading.band->error;
+    }
+  });
 
   Eigen::VectorXd slide, slide_deviation;
   const bool any_band =

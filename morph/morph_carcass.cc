@@ -4,6 +4,9 @@
 #include <exception>
 #include <memory>
 #include <utility>
+#include <vector>
+
+#include "morph/point_index.h"
 
 namespace vb::morph {
 namespace {
@@ -49,14 +52,18 @@ CarcassResult MorphFromCoarse(const TemplateModel& model, const io::Annotations&
         r.error = "dense stage: " + r.dense.error;
       } else {
         const auto phase = std::chrono::steady_clock::now();
-        r.check = CheckMorph(model, r.coarse, r.dense, options.check);
+        // The check and the part volumes read each target point's nearest morphed vertex.
+        const std::vector<int> nearest_vertex =
+            NearestEach(PointIndex(r.dense.mesh.V), r.dense.target, pool);
+        r.check = CheckMorph(model, r.coarse, r.dense, options.check, nearest_vertex);
         r.cuts = TransferCuts(annotations, model.mesh, r.dense.mesh, r.dense.target,
                               r.dense.target_normals, r.coarse.template_to_target.scale,
                               options.cuts, r.dense.noise, pool);
         for (TransferredCut& cut : r.cuts) cut.confidence *= r.check.confidence;
         if (!r.cuts.empty()) {
-          r.parts = CutTargetParts(r.dense.mesh, r.cuts, r.dense.target,
-                                   r.coarse.template_to_target.scale, options.parts);
+          r.parts =
+              CutTargetParts(r.dense.mesh, r.cuts, r.dense.target,
+                             r.coarse.template_to_target.scale, options.parts, nearest_vertex);
         }
         r.cuts_seconds = Since(phase);
         r.ok = !Abandoned(&r, options.deadline);

@@ -5,12 +5,14 @@
 #include <cstdio>
 #include <vector>
 
+#include "io/error.h"
 #include "morph/point_index.h"
 
 namespace vb::morph {
 
 MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
-                      const DenseResult& dense, const MorphCheckOptions& options) {
+                      const DenseResult& dense, const MorphCheckOptions& options,
+                      std::span<const int> nearest_vertex) {
   const Eigen::Matrix3Xd& target = dense.target;
   MorphCheck check;
   if (std::isfinite(coarse.runner_up_disagreement) && coarse.runner_up_disagreement > 0)
@@ -20,12 +22,20 @@ MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
   // takes it to the target's units.
   const double size = coarse.association.from_to.scale;
   if (target.cols() > 0 && dense.mesh.V.cols() > 0) {
-    const PointIndex index(dense.mesh.V);
+    VB_DEMAND(nearest_vertex.empty() ||
+              static_cast<Eigen::Index>(nearest_vertex.size()) == target.cols());
+    std::vector<int> found;
+    if (nearest_vertex.empty()) {
+      found = NearestEach(PointIndex(dense.mesh.V), target);
+      nearest_vertex = found;
+    }
     const double limit =
         (options.explained_distance + options.noise_allowance * dense.noise) * size;
     long far = 0;
-    for (Eigen::Index i = 0; i < target.cols(); ++i)
-      if ((dense.mesh.V.col(index.Nearest(target.col(i))) - target.col(i)).norm() > limit) ++far;
+    for (Eigen::Index i = 0; i < target.cols(); ++i) {
+      const int v = nearest_vertex[static_cast<std::size_t>(i)];
+      if ((dense.mesh.V.col(v) - target.col(i)).norm() > limit) ++far;
+    }
     check.unexplained = static_cast<double>(far) / static_cast<double>(target.cols());
   }
 

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <span>
 #include <string>
 
 #include "morph/coarse_alignment.h"
@@ -51,7 +52,10 @@ struct MorphCheckOptions {
 };
 
 /// Reads the target points the dense stage used (DenseResult::target).
+/// @param nearest_vertex for each of those points, the dense mesh's nearest vertex
+///   (NearestEach), or empty to find them here.
 MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
-                      const DenseResult& dense, const MorphCheckOptions& options = {});
+                      const DenseResult& dense, const MorphCheckOptions& options = {},
+                      std::span<const int> nearest_vertex = {});
 
 }  // namespace vb::morph

@@ -54,21 +54,28 @@ double SignedDistanceNear(const geometry::TriangleMesh& mesh, const Eigen::Matri
 std::vector<geometry::PartMeasure> CutTargetParts(const geometry::TriangleMesh& morphed,
                                                   const std::vector<TransferredCut>& cuts,
                                                   const Eigen::Matrix3Xd& target, double size,
-                                                  const PartVolumeOptions& options) {
+                                                  const PartVolumeOptions& options,
+                                                  std::span<const int> nearest_vertex) {
   VB_DEMAND(size > 0 && options.max_offset > 0);
+  VB_DEMAND(nearest_vertex.empty() ||
+            static_cast<Eigen::Index>(nearest_vertex.size()) == target.cols());
   std::vector<geometry::PartMeasure> parts = CutParts(morphed, cuts);
   if (parts.empty() || morphed.num_vertices() == 0) return parts;
   Eigen::Matrix3Xd computed_normals;  // for a mesh without
   const Eigen::Matrix3Xd& normals =
       morphed.has_normals() ? morphed.N : (computed_normals = geometry::VertexNormals(morphed));
   const std::vector<std::vector<int>> faces_of = geometry::FacesOfVertices(morphed);
-  const PointIndex index(morphed.V);
+  std::vector<int> found;
+  if (nearest_vertex.empty()) {
+    found = NearestEach(PointIndex(morphed.V), target);
+    nearest_vertex = found;
+  }
   const double max_offset = options.max_offset * size;
   std::vector<double> sum(parts.size(), 0.0);
   std::vector<int> count(parts.size(), 0);
   for (Eigen::Index j = 0; j < target.cols(); ++j) {
     const Eigen::Vector3d p = target.col(j);
-    const int v = index.Nearest(p);
+    const int v = nearest_vertex[static_cast<std::size_t>(j)];
     const double d =
         SignedDistanceNear(morphed, normals, faces_of[static_cast<std::size_t>(v)], v, p);
     if (!(std::abs(d) <= max_offset)) continue;

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <span>
 #include <vector>
 
 #include "geometry/plane_cut.h"
@@ -33,9 +34,12 @@ struct PartVolumeOptions {
 /// @param[in] morphed the morphed template, target frame (its vertex normals computed when
 /// it has none).
 /// @param[in] target 3 by N target points, same frame; @p size as TransferCuts'.
+/// @param nearest_vertex for each target point, the morphed mesh's nearest vertex
+///   (NearestEach), or empty to find them here.
 std::vector<geometry::PartMeasure> CutTargetParts(const geometry::TriangleMesh& morphed,
                                                   const std::vector<TransferredCut>& cuts,
                                                   const Eigen::Matrix3Xd& target, double size,
-                                                  const PartVolumeOptions& options = {});
+                                                  const PartVolumeOptions& options = {},
+                                                  std::span<const int> nearest_vertex = {});
 
 }  // namespace vb::morph

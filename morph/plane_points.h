@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <span>
 
 #include "morph/point_index.h"
 #include "morph/worker_pool.h"
@@ -26,11 +27,23 @@ double CurvatureOffset(double curvature_sum, double sigma);
 /// own centroids. A centroid on a convex patch lies inside the surface by about the curvature
 /// times the squared radius of the neighbourhood, nearly the same at neighbouring points;
 /// adding that back removes the bias and keeps the averaging.
+/// A plane point lies within 2 @p radius of its point (the centroid within one radius, the
+/// correction at most one more).
 /// @param[in] points, normals 3 by N (unit normals); @p index over @p points; k >= 1.
 /// @param pool when given, the points are shared among its threads; the result is the same
 ///   on any number of threads.
 Eigen::Matrix3Xd PlanePoints(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
                              const PointIndex& index, int k, double radius, bool correct_curvature,
                              WorkerPool* pool = nullptr);
+
+/// PlanePoints' result for the listed points only: column m is the plane point of point
+/// which[m], bit for bit what PlanePoints gives it. Costs about the listed points' share of
+/// PlanePoints (with the correction, also their neighbours' centroids), so a caller that reads
+/// one region of a large cloud pays for that region.
+/// @pre every entry of @p which lies in [0, N); the rest as PlanePoints.
+Eigen::Matrix3Xd PlanePointsOf(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
+                               const PointIndex& index, int k, double radius,
+                               bool correct_curvature, std::span<const int> which,
+                               WorkerPool* pool = nullptr);
 
 }  // namespace vb::morph

@@ -3,6 +3,7 @@
 #include <nanoflann.hpp>
 
 #include "io/error.h"
+#include "morph/worker_pool.h"
 
 namespace vb::morph {
 
@@ -40,6 +41,17 @@ void PointIndex::Nearest(const Eigen::Vector3d& q, int k, std::vector<int>* indi
   indices->resize(count);
   squared_distances->resize(count);
   for (std::size_t i = 0; i < count; ++i) (*indices)[i] = static_cast<int>(found[i]);
+}
+
+std::vector<int> NearestEach(const PointIndex& index, const Eigen::Matrix3Xd& queries,
+                             WorkerPool* pool) {
+  std::vector<int> nearest(static_cast<std::size_t>(queries.cols()));
+  constexpr std::int64_t kBlock = 2048;
+  ForEachBlock(pool, queries.cols(), kBlock, [&](std::int64_t first, std::int64_t last) {
+    for (std::int64_t i = first; i < last; ++i)
+      nearest[static_cast<std::size_t>(i)] = index.Nearest(queries.col(i));
+  });
+  return nearest;
 }
 
 }  // namespace vb::morph

@@ -29,4 +29,12 @@ class PointIndex {
   std::unique_ptr<Tree> tree_;
 };
 
+class WorkerPool;
+
+/// For each column of @p queries, the index of the nearest of @p index's points: the queries
+/// shared among @p pool's threads (when given), each writing only its own entry, so the result
+/// is the same on any number of threads. @pre the index holds at least one point.
+std::vector<int> NearestEach(const PointIndex& index, const Eigen::Matrix3Xd& queries,
+                             WorkerPool* pool = nullptr);
+
 }  // namespace vb::morph

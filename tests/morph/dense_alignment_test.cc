@@ -160,6 +160,51 @@ TEST(PlanePointsTest, AreTheSameOnOneThreadAsOnSeveral) {
   }
 }
 
+// The plane points of a few listed points are those of the whole cloud, to the last bit: the
+// cut transfer makes them only near its bands. The list is out of order and repeats a point.
+TEST(PlanePointsTest, OfListedPointsAreThoseOfTheWholeCloud) {
+  const Eigen::Matrix3Xd normals = SpherePoints(20000, 5);
+  const Eigen::Matrix3Xd points = Roughened(normals, 0.004, 9);
+  const PointIndex index(points);
+  std::vector<int> which;
+  for (int i = 19999; i >= 0; i -= 37) which.push_back(i);
+  which.push_back(which.front());
+  WorkerPool pool(2);
+  for (bool correct : {false, true}) {
+    const Eigen::Matrix3Xd all = PlanePoints(points, normals, index, 10, 0.1, correct);
+    // Within twice the radius of its point (the cut transfer's choice of points relies on it).
+    EXPECT_LE((all - points).colwise().norm().maxCoeff(), 2 * 0.1) << "correction " << correct;
+    for (WorkerPool* p : {static_cast<WorkerPool*>(nullptr), &pool}) {
+      const Eigen::Matrix3Xd listed =
+          PlanePointsOf(points, normals, index, 10, 0.1, correct, which, p);
+      ASSERT_EQ(listed.cols(), static_cast<Eigen::Index>(which.size()));
+      int differ = 0;
+      for (std::size_t m = 0; m < which.size(); ++m)
+        differ += !(listed.col(static_cast<Eigen::Index>(m)) == all.col(which[m]));
+      EXPECT_EQ(differ, 0) << "correction " << correct << ", pool " << (p != nullptr);
+    }
+  }
+  EXPECT_EQ(PlanePointsOf(points, normals, index, 10, 0.1, true, {}).cols(), 0);
+}
+
+TEST(NearestEachTest, IsEachQuerysNearestOnAnyNumberOfThreads) {
+  const Eigen::Matrix3Xd points = SpherePoints(5000, 3);
+  const Eigen::Matrix3Xd queries = Roughened(SpherePoints(9000, 4), 0.05, 6);
+  const PointIndex index(points);
+  const std::vector<int> alone = NearestEach(index, queries);
+  ASSERT_EQ(alone.size(), 9000u);
+  int wrong = 0;
+  for (Eigen::Index i = 0; i < queries.cols(); ++i) {
+    const double found = (points.col(alone[static_cast<std::size_t>(i)]) - queries.col(i)).norm();
+    wrong += found > (points.colwise() - queries.col(i)).colwise().norm().minCoeff() + 1e-12;
+  }
+  EXPECT_EQ(wrong, 0);
+  for (int threads : {2, 3}) {
+    WorkerPool pool(threads);
+    EXPECT_TRUE(NearestEach(index, queries, &pool) == alone) << threads << " threads";
+  }
+}
+
 TEST(EstimateNoiseTest, ReadsTheTrueSigmaFromCleanToNoiseAsLargeAsTheSpacing) {
   // A unit sphere and a thin cylinder (radius 0.15): curvature that a plane fit reads as
   // noise. 20,000 points on the sphere are about 0.025 apart, so sigma 0.02 moves a point by

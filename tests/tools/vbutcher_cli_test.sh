@@ -261,6 +261,13 @@ check "bench full starts from the truth" 0 "sigma 0: started from the truth at c
 [ -s "$work/bench.csv" ] || { echo "FAIL: bench wrote no CSV"; failures=$((failures + 1)); }
 check "bench refuses too few cloud points" nonzero "cloud-points" \
   "$vbutcher" bench full --pairs 1 --cloud-points 5
+# A --shapes mesh that cannot be read stops the bench before its first morph, naming the file.
+printf 'OFF\n3 1 0\n0 0 0\n' > "$work/short.off"
+for stage in coarse full; do
+  check "bench $stage refuses an unreadable shape" 2 "bench: --shapes $work/short.off: .*counts 3 vertices" \
+    "$vbutcher" bench "$stage" --pairs 1 --sigmas-mm 0 --shapes "$work/short.off" --csv "$work/refused.csv"
+done
+[ ! -e "$work/refused.csv" ] || { echo "FAIL: a refused bench wrote a CSV"; failures=$((failures + 1)); }
 
 # bench inputs, its files at a thousandth of the limits: every reader reads or refuses its
 # file (none fails otherwise), one CSV row per read.
