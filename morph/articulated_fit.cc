@@ -61,26 +61,14 @@ int NearestFacingAlike(const PointIndex& index, const Eigen::Matrix3Xd& normals,
   return -1;
 }
 
-// Column of sample @p k of branch @p b in a guide's matrices.
-Eigen::Index SampleColumn(int b, int k) {
-  return static_cast<Eigen::Index>(b) * BranchGuide::kSamples + k;
-}
+}  // namespace
 
-// The sample nearest @p fraction of a branch's length from its root.
-int SampleAt(double fraction) {
-  return static_cast<int>(
-      std::lround(std::clamp(fraction, 0.0, 1.0) * (BranchGuide::kSamples - 1)));
-}
-
-// Branch pairs (template, target) that are each other's cheapest (ArticulationOptions'
-// branch pulls). @p posed and @p target hold the guide's samples, both in the template's
-// frame; @p scale turns target lengths into template sizes.
 std::vector<std::pair<int, int>> PairBranches(const BranchGuide& guide,
                                               const Eigen::Matrix3Xd& posed,
                                               const Eigen::Matrix3Xd& target, double scale,
-                                              const ArticulationOptions& options) {
+                                              double along, const ArticulationOptions& options) {
   const int na = guide.num_template_branches(), nb = guide.num_target_branches();
-  const int out = SampleAt(0.75);
+  const int out = BranchGuide::SampleAt(along);
   Eigen::MatrixXd cost = Eigen::MatrixXd::Constant(na, nb, std::numeric_limits<double>::infinity());
   for (int a = 0; a < na; ++a) {
     for (int b = 0; b < nb; ++b) {
@@ -88,8 +76,9 @@ std::vector<std::pair<int, int>> PairBranches(const BranchGuide& guide,
       const double lb = guide.target_length[static_cast<std::size_t>(b)] / scale;
       if (!(la > 0 && lb > 0) || std::max(la, lb) > options.branch_max_ratio * std::min(la, lb))
         continue;
-      const double c = (posed.col(SampleColumn(a, 0)) - target.col(SampleColumn(b, 0))).norm() +
-                       (posed.col(SampleColumn(a, out)) - target.col(SampleColumn(b, out))).norm();
+      const double c =
+          (posed.col(BranchGuide::Column(a, 0)) - target.col(BranchGuide::Column(b, 0))).norm() +
+          (posed.col(BranchGuide::Column(a, out)) - target.col(BranchGuide::Column(b, out))).norm();
       if (c <= options.branch_radius) cost(a, b) = c;
     }
   }
@@ -103,8 +92,6 @@ std::vector<std::pair<int, int>> PairBranches(const BranchGuide& guide,
   return pairs;
 }
 
-}  // namespace
-
 BranchGuide MakeBranchGuide(const TemplateModel& model, const SkeletonGraph& target_skeleton,
                             const FeatureNodes& target_features) {
   BranchGuide guide;
@@ -117,7 +104,7 @@ BranchGuide MakeBranchGuide(const TemplateModel& model, const SkeletonGraph& tar
     guide.template_length.push_back(mine[a].length());
     for (int k = 0; k < kSamples; ++k) {
       int node = 0;
-      guide.template_rest.col(SampleColumn(static_cast<int>(a), k)) =
+      guide.template_rest.col(BranchGuide::Column(static_cast<int>(a), k)) =
           PointAlong(model.skeleton, mine[a], static_cast<double>(k) / (kSamples - 1), &node);
       support.push_back(static_cast<std::size_t>(node) < model.skeleton.support.size()
                             ? model.skeleton.support[static_cast<std::size_t>(node)]
@@ -127,11 +114,40 @@ BranchGuide MakeBranchGuide(const TemplateModel& model, const SkeletonGraph& tar
   guide.template_weights =
       PointWeights(guide.template_rest, support, model.graph, model.vertex_weights,
                    static_cast<int>(model.terminal_weights.nodes.rows()));
+  // Each graph node's limb: the branch whose skeleton nodes stand for its vertex.
+  const auto num_vertices = static_cast<std::size_t>(model.V.cols());
+  std::vector<int> vertex_branch(num_vertices, -1);
+  std::vector<double> vertex_fraction(num_vertices, 0.0);
+  for (std::size_t a = 0; a < mine.size(); ++a) {
+    const SkeletonBranch& branch = mine[a];
+    if (!(branch.length() > 0)) continue;
+    for (std::size_t k = 1; k < branch.nodes.size(); ++k) {
+      const auto node = static_cast<std::size_t>(branch.nodes[k]);
+      if (node >= model.skeleton.support.size()) continue;
+      for (const int v : model.skeleton.support[node]) {
+        const auto s = static_cast<std::size_t>(v);
+        if (v < 0 || s >= num_vertices || vertex_branch[s] >= 0) continue;
+        vertex_branch[s] = static_cast<int>(a);
+        vertex_fraction[s] = branch.distance[k] / branch.length();
+      }
+    }
+  }
+  for (const int v : model.graph.node_vertex) {
+    guide.node_branch.push_back(vertex_branch[static_cast<std::size_t>(v)]);
+    guide.node_fraction.push_back(vertex_fraction[static_cast<std::size_t>(v)]);
+  }
   guide.target_points.resize(3, static_cast<Eigen::Index>(theirs.size()) * kSamples);
   for (std::size_t b = 0; b < theirs.size(); ++b) {
     guide.target_length.push_back(theirs[b].length());
+    std::vector<int>& support = guide.target_support.emplace_back();
+    for (std::size_t k = 1; k < theirs[b].nodes.size(); ++k) {
+      const auto node = static_cast<std::size_t>(theirs[b].nodes[k]);
+      if (node < target_skeleton.support.size())
+        support.insert(support.end(), target_skeleton.support[node].begin(),
+                       target_skeleton.support[node].end());
+    }
     for (int k = 0; k < kSamples; ++k) {
-      guide.target_points.col(SampleColumn(static_cast<int>(b), k)) =
+      guide.target_points.col(BranchGuide::Column(static_cast<int>(b), k)) =
           PointAlong(target_skeleton, theirs[b], static_cast<double>(k) / (kSamples - 1));
     }
   }
@@ -308,15 +324,15 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
       const Eigen::Matrix3Xd along =
           DeformPoints(model.graph, guide->template_weights, guide->template_rest, result.state);
       for (const auto& [a, b] :
-           PairBranches(*guide, along, branch_targets, placement.scale, options)) {
+           PairBranches(*guide, along, branch_targets, placement.scale, 0.75, options)) {
         const double la = guide->template_length[static_cast<std::size_t>(a)];
         const double lb = guide->target_length[static_cast<std::size_t>(b)] / placement.scale;
         const double shorter = std::min(la, lb);
         for (const double share : {0.5, 0.75, 1.0}) {
-          const Eigen::Index from = SampleColumn(a, SampleAt(share * shorter / la));
+          const Eigen::Index from = BranchGuide::Column(a, BranchGuide::SampleAt(share * shorter / la));
           PointConstraint c =
               ConstrainPoint(guide->template_weights, from, guide->template_rest.col(from),
-                             branch_targets.col(SampleColumn(b, SampleAt(share * shorter / lb))));
+                             branch_targets.col(BranchGuide::Column(b, BranchGuide::SampleAt(share * shorter / lb))));
           c.weight = per_pair * branch_weight;
           constraints.push_back(std::move(c));
         }

@@ -1,6 +1,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
 #include <utility>
 #include <vector>
 
@@ -69,6 +71,17 @@ struct ArticulationOptions {
   double branch_decay = 0.5;
   double branch_radius = 0.4;
   double branch_max_ratio = 1.5;
+  /// Limbs turned as wholes (TurnLimbs), for the chosen placement: its posture fit is run a
+  /// second time, from the template with each limb turned about its root onto the paired
+  /// target limb, and that fit is kept when its trimmed disagreement is below limb_turn_gain
+  /// times the first's. Closest points cannot draw a limb that turned 90 degrees or more
+  /// (an arm raised over the head stays on the flank it hung beside). 0 turns it off.
+  double limb_turn_gain = 0.95;
+  /// Limbs are paired for the turn by their roots and by their points this far out along
+  /// their length (within branch_radius together, lengths within branch_max_ratio): near the
+  /// root, so that a limb is found wherever it points, far enough to tell two limbs that
+  /// share a root apart.
+  double limb_pair_fraction = 0.25;
   /// The data weight per graph node: each pair's weight is w_data times the node count over
   /// the pair count, so the balance with the regularisers does not depend on the sampling.
   /// Conjugate gradients: with hundreds of pairs each coupling several nodes they reach the
@@ -85,21 +98,48 @@ struct ArticulationOptions {
 /// lengths from its root to its tip, for ArticulationOptions' branch pulls.
 struct BranchGuide {
   static constexpr int kSamples = 21;
+  /// The column of sample @p k of branch @p b in the matrices below.
+  static Eigen::Index Column(int b, int k) {
+    return static_cast<Eigen::Index>(b) * kSamples + k;
+  }
+  /// The sample nearest @p fraction of a branch's length from its root.
+  static int SampleAt(double fraction) {
+    return static_cast<int>(std::lround(std::clamp(fraction, 0.0, 1.0) * (kSamples - 1)));
+  }
   /// Template side, normalised frame: kSamples columns per branch, root first.
   Eigen::Matrix3Xd template_rest;
   NodeWeights template_weights;         ///< eq. (10) weights of those points
   std::vector<double> template_length;  ///< per branch, template sizes
+  /// Per deformation-graph node: the template branch whose limb it lies on (-1: the trunk,
+  /// or a root) and how far out along that branch, a fraction of its length (TurnLimbs).
+  std::vector<int> node_branch;
+  std::vector<double> node_fraction;
   /// Target side, in the target's frame and units, likewise.
   Eigen::Matrix3Xd target_points;
   std::vector<double> target_length;
+  /// Per target branch: the target points its skeleton nodes stand for, its root's left out.
+  std::vector<std::vector<int>> target_support;
   int num_template_branches() const { return static_cast<int>(template_length.size()); }
   int num_target_branches() const { return static_cast<int>(target_length.size()); }
 };
 
 /// The guide between @p model's skeleton and a target's (@p target_skeleton and the
-/// @p target_features extracted from it, in the target's frame).
+/// @p target_features extracted from it, in the target's frame). A template vertex, and so a
+/// graph node, lies on the limb whose skeleton nodes (its root's left out) stand for it; one
+/// two limbs share goes to the first.
 BranchGuide MakeBranchGuide(const TemplateModel& model, const SkeletonGraph& target_skeleton,
                             const FeatureNodes& target_features);
+
+/// Branch pairs (template, target) that are each other's cheapest: the cost is the distance
+/// between their roots plus that between their points @p along their lengths out, within
+/// options.branch_radius, for lengths within options.branch_max_ratio of each other.
+/// @param[in] posed the template's branch samples (BranchGuide::template_rest, as posed).
+/// @param[in] target the target's branch samples brought into the template's frame.
+/// @param scale target units per template size.
+std::vector<std::pair<int, int>> PairBranches(const BranchGuide& guide,
+                                              const Eigen::Matrix3Xd& posed,
+                                              const Eigen::Matrix3Xd& target, double scale,
+                                              double along, const ArticulationOptions& options);
 
 /// A pose of the template and how well it covers the target.
 struct ArticulationResult {

@@ -9,10 +9,12 @@
 #include <limits>
 #include <memory>
 #include <numbers>
+#include <string>
 
 #include "geometry/mesh_measures.h"
 #include "io/error.h"
 #include "morph/cloud_normals.h"
+#include "morph/limb_turn.h"
 #include "morph/point_index.h"
 
 namespace vb::morph {
@@ -392,17 +394,41 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
         options.articulation.min_stiffness,
         options.articulation.stiffness_start *
             std::pow(options.articulation.stiffness_decay, options.choice_rounds));
-    const BranchGuide guide = rest.branch_weight > 0 && rest.rounds > 0
+    const bool turn_limbs = options.articulation.limb_turn_gain > 0;
+    const BranchGuide guide = (rest.branch_weight > 0 && rest.rounds > 0) || turn_limbs
                                   ? MakeBranchGuide(model, skeleton, result.target_features)
                                   : BranchGuide{};
     ArticulationResult fit = ArticulateTemplate(
         model, target, target_index, result.target_features.terminals, articulated_states[chosen],
         rest, to_target, &guide, posture_normals_or_none());
+    int iterations = options.choice_rounds + fit.rounds;
+    // Limbs that turned too far for closest points: the fit again from them turned as
+    // wholes, kept when it covers the target clearly better.
+    if (turn_limbs) {
+      const DeformationState turned = TurnLimbs(model, guide, target, target_index, to_target,
+                                                options.articulation, &result.limbs_turned);
+      if (result.limbs_turned > 0) {
+        ArticulationResult again =
+            ArticulateTemplate(model, target, target_index, result.target_features.terminals,
+                               turned, options.articulation, to_target, &guide,
+                               posture_normals_or_none());
+        if (again.ok &&
+            again.disagreement < options.articulation.limb_turn_gain * fit.disagreement) {
+          fit = std::move(again);
+          iterations = fit.rounds;
+        } else {
+          result.limbs_turned = 0;
+        }
+      }
+    }
     result.state = std::move(fit.state);
     result.disagreement = fit.disagreement;
     result.deformation.usable = true;
-    result.deformation.iterations = options.choice_rounds + fit.rounds;
-    result.deformation.message = "posture fit";
+    result.deformation.iterations = iterations;
+    result.deformation.message =
+        result.limbs_turned > 0
+            ? "posture fit, " + std::to_string(result.limbs_turned) + " limbs turned"
+            : std::string("posture fit");
     result.deformation_seconds = Since(phase);
     Finish(model, to_target, DeformPoints(model.graph, model.vertex_weights, model.V, result.state),
            &result);

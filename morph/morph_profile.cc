@@ -58,6 +58,8 @@ const std::array kKeys = {
     VB_PROFILE_KEY(coarse.articulation.branch_decay, kFraction, 0.0, 1.0, false, "posture fit: limb pull's decay a round"),
     VB_PROFILE_KEY(coarse.articulation.branch_radius, kSize, 0.0, 2.0, false, "posture fit: limbs paired within (roots plus outer points)"),
     VB_PROFILE_KEY(coarse.articulation.branch_max_ratio, "ratio", 1.0, 10.0, false, "posture fit: paired limbs' lengths differ at most"),
+    VB_PROFILE_KEY(coarse.articulation.limb_turn_gain, kFraction, 0.0, 1.0, false, "posture fit: limbs turned as wholes kept below this share of the fit's disagreement (0: off)"),
+    VB_PROFILE_KEY(coarse.articulation.limb_pair_fraction, kFraction, 0.0, 1.0, false, "posture fit: limbs paired for the turn by roots and points this far out"),
     VB_PROFILE_KEY(coarse.articulation.deformation.w_data, kWeight, 0.0, 1e6, false, "posture fit: data weight per node"),
     VB_PROFILE_KEY(coarse.articulation.deformation.w_rot, kWeight, 0.0, 1e6, false, "posture fit: E_rot weight"),
     VB_PROFILE_KEY(coarse.articulation.deformation.w_reg, kWeight, 0.0, 1e6, false, "posture fit: E_reg weight"),

@@ -73,6 +73,7 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
   deformation["final_cost"] = r.deformation.final_cost;
   deformation["message"] = r.deformation.message;
   deformation["kept"] = r.deformation_kept;
+  deformation["limbs_turned"] = r.limbs_turned;
   if (dense != nullptr) {
     nlohmann::json rounds = nlohmann::json::array();
     for (const DenseRound& round : dense->rounds) {
