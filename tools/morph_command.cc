@@ -20,6 +20,14 @@
 #include "morph/template_model.h"
 
 namespace vb::tools {
+namespace {
+
+// A body read as metres outside these bounds (bounding-box diagonal) is probably in other
+// units: a lamb carcass is about 1.2 m across, a mouse 0.1 m, an elephant 6 m.
+constexpr double kLeastMetresAcross = 0.02;
+constexpr double kMostMetresAcross = 30.0;
+
+}  // namespace
 
 int RunMorphCommand(const MorphCommandOptions& options) {
   if (options.stage != "coarse" && options.stage != "full") {
@@ -73,10 +81,25 @@ int RunMorphCommand(const MorphCommandOptions& options) {
     }
   }
   const geometry::PointCloud target = io::ReadCloud(options.target_path);
+  // Every length printed below reads the target as metres. A scan exported in millimetres (or
+  // centimetres) morphs just as well, the morph being free of scale, but reads 1000 (or 100)
+  // times too large.
+  if (const double across =
+          target.points.cols() > 0
+              ? (target.points.rowwise().maxCoeff() - target.points.rowwise().minCoeff()).norm()
+              : 0.0;
+      across > kMostMetresAcross || (across > 0 && across < kLeastMetresAcross)) {
+    std::fprintf(stderr,
+                 "vbutcher: morph: warning: %s is %.4g across, read as metres: is it in other "
+                 "units (millimetres read 1000 times too large)? Lengths, volumes and areas below "
+                 "are in its own units\n",
+                 options.target_path.string().c_str(), across);
+  }
   // The full stage is the pipeline's own path (morph, whole-morph check, cuts).
   morph::CarcassResult result;
   if (options.stage == "full") {
-    morph::Morpher morpher(model, annotations, morph_options, {.threads = options.threads, .worker_wrapper = {}});
+    morph::Morpher morpher(model, annotations, morph_options,
+                           {.threads = options.threads, .worker_wrapper = {}});
     result = morpher.Morph(target.points, target.normals);
   } else {
     morph::WorkerPool pool(options.threads);
@@ -101,7 +124,8 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   io::WriteMesh(options.out_path, full ? dense.mesh : coarse.mesh);
   std::printf(
       "morph: template model %.2f s; target skeleton %.3f s, association %.3f s (%ld candidates, "
-      "rms %.4g of the size, placed by %s), deformation %.3f s (%d iterations, %s); coarse total %.3f s\n",
+      "rms %.4g of the size, placed by %s), deformation %.3f s (%d iterations, %s); coarse total "
+      "%.3f s\n",
       model.seconds, coarse.skeleton_seconds, coarse.association_seconds,
       coarse.association.candidates, coarse.association.rms_residual,
       coarse.placed_by_skeletons ? "skeleton pairing" : "principal axes",
@@ -126,7 +150,8 @@ int RunMorphCommand(const MorphCommandOptions& options) {
     std::printf(
         "morph: dense: noise %.1f mm (%.3g of the size; %s; %.0f points per m2), normals %.3f s, "
         "%zu rounds, total %.3f s\n",
-        1000 * dense.noise_m, dense.noise, used.c_str(), dense.density_m2, dense.normals_seconds, dense.rounds.size(), dense.total_seconds);
+        1000 * dense.noise_m, dense.noise, used.c_str(), dense.density_m2, dense.normals_seconds,
+        dense.rounds.size(), dense.total_seconds);
   }
   if (full) {
     // How the morph sits on the scan, with no ground truth: every scan point's distance to the
@@ -139,20 +164,21 @@ int RunMorphCommand(const MorphCommandOptions& options) {
     std::sort(d.begin(), d.end());
     double sum = 0;
     for (double x : d) sum += x;
-    std::printf("morph: fit: scan to morph distance mean %.1f mm, p95 %.1f mm, max %.1f mm (%zu "
-                "scan points, metres assumed)\n",
-                1000 * sum / static_cast<double>(d.size()),
-                1000 * d[std::min(d.size() - 1, d.size() * 95 / 100)], 1000 * d.back(), d.size());
+    std::printf(
+        "morph: fit: scan to morph distance mean %.1f mm, p95 %.1f mm, max %.1f mm (%zu "
+        "scan points, metres assumed)\n",
+        1000 * sum / static_cast<double>(d.size()),
+        1000 * d[std::min(d.size() - 1, d.size() * 95 / 100)], 1000 * d.back(), d.size());
     const morph::Similarity placed =
         morph::Similarity::FromUmeyama(Eigen::umeyama(model.mesh.V, dense.mesh.V, true));
     const Eigen::AngleAxisd turn(placed.R);
     const Eigen::Vector3d up = placed.R.col(2);
-    std::printf("morph: placement: scale %.3f, turned %.1f deg about (%+.3f %+.3f %+.3f), the "
-                "template's +z now (%+.3f %+.3f %+.3f), centre (%.3f %.3f %.3f) m\n",
-                placed.scale, turn.angle() * 180.0 / std::numbers::pi, turn.axis().x(),
-                turn.axis().y(), turn.axis().z(), up.x(), up.y(), up.z(),
-                dense.mesh.V.rowwise().mean().x(), dense.mesh.V.rowwise().mean().y(),
-                dense.mesh.V.rowwise().mean().z());
+    std::printf(
+        "morph: placement: scale %.3f, turned %.1f deg about (%+.3f %+.3f %+.3f), the "
+        "template's +z now (%+.3f %+.3f %+.3f), centre (%.3f %.3f %.3f) m\n",
+        placed.scale, turn.angle() * 180.0 / std::numbers::pi, turn.axis().x(), turn.axis().y(),
+        turn.axis().z(), up.x(), up.y(), up.z(), dense.mesh.V.rowwise().mean().x(),
+        dense.mesh.V.rowwise().mean().y(), dense.mesh.V.rowwise().mean().z());
     std::printf(
         "morph: check: ambiguity %.3f, unexplained %.3f, stretch %.3f -> confidence %.2f%s%s\n",
         result.check.ambiguity, result.check.unexplained, result.check.stretch,

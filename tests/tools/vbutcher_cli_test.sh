@@ -131,6 +131,12 @@ check "morph drops a scan's zero-length normals, naming the file" 0 "zero_normal
 check "morph --stage full reports the fit to the scan" 0 "morph: fit: scan to morph distance mean" \
   "$vbutcher" morph --template "$work/set/template.ply" --target "$work/zero_normals.ply" --out "$work/z.ply" \
   --stage full --annotations "$work/set/template_annotations.yaml"
+# The same scan in millimetres: it morphs, with a warning that its lengths read as metres.
+awk 'body { $1 *= 1000; $2 *= 1000; $3 *= 1000 } { print } /^end_header/ { body = 1 }' \
+  "$work/zero_normals.ply" > "$work/millimetres.ply"
+check "morph warns that a scan 1000 times a body's size is read as metres" 0 \
+  "millimetres.ply is [0-9.]* across, read as metres" \
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/millimetres.ply" --out "$work/mm.ply"
 # A cloud much denser than its noise: the morph reads and uses it at every n-th point.
 check "synth writes a dense noisy cloud" 0 "template:" "$vbutcher" synth --out "$work/dense" --count 1 \
   --seed 5 --sigma-mm 16 --cloud --cloud-points 80000
