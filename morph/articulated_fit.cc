@@ -132,6 +132,7 @@ BranchGuide MakeBranchGuide(const TemplateModel& model, const SkeletonGraph& tar
       }
     }
   }
+  guide.vertex_branch = vertex_branch;
   for (const int v : model.graph.node_vertex) {
     guide.node_branch.push_back(vertex_branch[static_cast<std::size_t>(v)]);
     guide.node_fraction.push_back(vertex_fraction[static_cast<std::size_t>(v)]);

@@ -82,6 +82,18 @@ struct ArticulationOptions {
   /// root, so that a limb is found wherever it points, far enough to tell two limbs that
   /// share a root apart.
   double limb_pair_fraction = 0.25;
+  /// Limbs swung (SwingLimbs), for the chosen placement, after its posture fit: each template
+  /// limb is tried in this many directions spread over the sphere about its posed root, and
+  /// the fit is run again from the limbs swung where the target is best explained; kept by
+  /// the same rule as the turn (limb_turn_gain). Needs no skeleton of the target, so a limb
+  /// the target's skeleton merged with its neighbour or cut at another junction still
+  /// reaches its place. 0 turns it off.
+  int limb_swing_directions = 96;
+  /// How far apart a swung limb and the target count at most, template sizes: a limb the
+  /// target does not show (a camera shadow) gains little by lying on some other surface.
+  /// Also how near (mean over its nodes) the first fit must have a limb to where TurnLimbs
+  /// would put it for that turn to be left out, the fit having done it.
+  double limb_swing_cap = 0.05;
   /// The data weight per graph node: each pair's weight is w_data times the node count over
   /// the pair count, so the balance with the regularisers does not depend on the sampling.
   /// Conjugate gradients: with hundreds of pairs each coupling several nodes they reach the
@@ -114,6 +126,8 @@ struct BranchGuide {
   /// or a root) and how far out along that branch, a fraction of its length (TurnLimbs).
   std::vector<int> node_branch;
   std::vector<double> node_fraction;
+  /// Per template vertex: the branch whose limb it lies on (-1: the trunk).
+  std::vector<int> vertex_branch;
   /// Target side, in the target's frame and units, likewise.
   Eigen::Matrix3Xd target_points;
   std::vector<double> target_length;

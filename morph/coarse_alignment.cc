@@ -402,24 +402,33 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
         model, target, target_index, result.target_features.terminals, articulated_states[chosen],
         rest, to_target, &guide, posture_normals_or_none());
     int iterations = options.choice_rounds + fit.rounds;
-    // Limbs that turned too far for closest points: the fit again from them turned as
-    // wholes, kept when it covers the target clearly better.
+    const DeformationState first_state = fit.state;
+    // Limbs that turned too far for closest points: the fit again from them turned onto the
+    // target's limbs (TurnLimbs) and from them swung to where they explain the target best
+    // (SwingLimbs), the better kept when it covers the target clearly better than the first.
     if (turn_limbs) {
-      const DeformationState turned = TurnLimbs(model, guide, target, target_index, to_target,
-                                                options.articulation, &result.limbs_turned);
-      if (result.limbs_turned > 0) {
+      const double first = fit.disagreement;
+      const auto fit_again = [&](const DeformationState& from, int moved) {
+        if (moved == 0) return;
         ArticulationResult again =
             ArticulateTemplate(model, target, target_index, result.target_features.terminals,
-                               turned, options.articulation, to_target, &guide,
+                               from, options.articulation, to_target, &guide,
                                posture_normals_or_none());
-        if (again.ok &&
-            again.disagreement < options.articulation.limb_turn_gain * fit.disagreement) {
+        if (again.ok && again.disagreement < options.articulation.limb_turn_gain * first &&
+            again.disagreement < fit.disagreement) {
+          result.limbs_turned = moved;
+          iterations = again.rounds;
           fit = std::move(again);
-          iterations = fit.rounds;
-        } else {
-          result.limbs_turned = 0;
         }
-      }
+      };
+      int moved = 0;
+      const DeformationState turned =
+          TurnLimbs(model, guide, target, target_index, to_target, options.articulation, &moved,
+                    &first_state);
+      fit_again(turned, moved);
+      const DeformationState swung = SwingLimbs(model, guide, target, target_index, to_target,
+                                                first_state, options.articulation, &moved, pool);
+      fit_again(swung, moved);
     }
     result.state = std::move(fit.state);
     result.disagreement = fit.disagreement;

@@ -80,8 +80,8 @@ struct CoarseResult {
   /// False when the deformation moved the template away from the target's surface and the
   /// rigid placement was kept instead.
   bool deformation_kept = true;
-  /// Limbs the posture fit turned as wholes before fitting (TurnLimbs), when that fit was
-  /// kept; 0 otherwise.
+  /// Limbs the posture fit turned or swung as wholes before fitting again (TurnLimbs,
+  /// SwingLimbs), when that fit was kept; 0 otherwise.
   int limbs_turned = 0;
   /// The node transforms found, in the template's normalised frame; the dense stage goes on
   /// from them.

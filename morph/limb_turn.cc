@@ -3,6 +3,8 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cmath>
+#include <numbers>
 #include <vector>
 
 #include "io/error.h"
@@ -50,12 +52,32 @@ double MeanNearest(const Eigen::Matrix3Xd& from, const Eigen::Matrix3Xd& to) {
   return sum / static_cast<double>(from.cols());
 }
 
+// Evenly spread column indices of a matrix with @p n columns, about @p wanted of them.
+std::vector<int> Spread(Eigen::Index n, int wanted) {
+  std::vector<int> out;
+  const Eigen::Index step = std::max<Eigen::Index>(1, n / std::max(1, wanted));
+  for (Eigen::Index i = 0; i < n; i += step) out.push_back(static_cast<int>(i));
+  return out;
+}
+
+// @p count unit vectors spread evenly over the sphere (a Fibonacci lattice).
+std::vector<Eigen::Vector3d> SphereDirections(int count) {
+  std::vector<Eigen::Vector3d> out;
+  const double golden_angle = std::numbers::pi * (3.0 - std::sqrt(5.0));
+  for (int i = 0; i < count; ++i) {
+    const double z = 1.0 - 2.0 * (i + 0.5) / count;
+    const double r = std::sqrt(std::max(0.0, 1.0 - z * z));
+    out.emplace_back(r * std::cos(i * golden_angle), r * std::sin(i * golden_angle), z);
+  }
+  return out;
+}
+
 }  // namespace
 
 DeformationState TurnLimbs(const TemplateModel& model, const BranchGuide& guide,
                            const Eigen::Matrix3Xd& target, const PointIndex& target_index,
                            const Similarity& placement, const ArticulationOptions& options,
-                           int* turned) {
+                           int* turned, const DeformationState* current) {
   VB_DEMAND(placement.Usable());
   VB_DEMAND(static_cast<int>(guide.node_branch.size()) == model.graph.num_nodes());
   DeformationState state = DeformationState::Identity(model.graph.num_nodes());
@@ -78,11 +100,17 @@ DeformationState TurnLimbs(const TemplateModel& model, const BranchGuide& guide,
     const Eigen::Matrix3d R = LimbTurn(guide, theirs, a, b, placement.scale);
     const Eigen::Vector3d root = guide.template_rest.col(BranchGuide::Column(a, 0));
     const auto n = static_cast<Eigen::Index>(nodes.size());
-    Eigen::Matrix3Xd rest(3, n), moved(3, n);
+    // The limb's nodes at rest, turned, and where the fit so far has them.
+    Eigen::Matrix3Xd rest(3, n), moved(3, n), now(3, n);
     for (Eigen::Index i = 0; i < n; ++i) {
-      rest.col(i) = model.graph.nodes.col(nodes[static_cast<std::size_t>(i)]);
+      const auto j = static_cast<std::size_t>(nodes[static_cast<std::size_t>(i)]);
+      rest.col(i) = model.graph.nodes.col(static_cast<Eigen::Index>(j));
       moved.col(i) = R * (rest.col(i) - root) + root;
+      now.col(i) = current != nullptr ? Eigen::Vector3d(rest.col(i) + current->t[j]) : rest.col(i);
     }
+    // A limb the fit so far already brought about where the turn would is left to it.
+    if (current != nullptr && (moved - now).colwise().norm().mean() < options.limb_swing_cap)
+      continue;
     // The limb's nodes to the target, in the target's frame.
     double before = 0.0, after = 0.0;
     for (Eigen::Index i = 0; i < n; ++i) {
@@ -104,6 +132,120 @@ DeformationState TurnLimbs(const TemplateModel& model, const BranchGuide& guide,
       state.t[j] = moved.col(i) - rest.col(i);
     }
     if (turned != nullptr) ++*turned;
+  }
+  return state;
+}
+
+DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide,
+                            const Eigen::Matrix3Xd& target, const PointIndex& target_index,
+                            const Similarity& placement, const DeformationState& start,
+                            const ArticulationOptions& options, int* swung, WorkerPool* pool) {
+  VB_DEMAND(placement.Usable());
+  VB_DEMAND(static_cast<int>(guide.node_branch.size()) == model.graph.num_nodes());
+  VB_DEMAND(guide.vertex_branch.size() == static_cast<std::size_t>(model.V.cols()));
+  DeformationState state = start;
+  if (swung != nullptr) *swung = 0;
+  const int num_limbs = guide.num_template_branches();
+  if (num_limbs == 0 || options.limb_swing_directions <= 0) return state;
+  const Similarity back = placement.Inverse();
+  const double cap = options.limb_swing_cap;
+
+  // The template's samples with their node weights, and the target's in the template's frame.
+  const std::vector<int> ids = Spread(model.V.cols(), options.template_samples);
+  const auto ns = static_cast<Eigen::Index>(ids.size());
+  Eigen::Matrix3Xd rest(3, ns);
+  NodeWeights weights;
+  weights.nodes.resize(model.vertex_weights.nodes.rows(), ns);
+  weights.weights.resize(model.vertex_weights.weights.rows(), ns);
+  for (Eigen::Index k = 0; k < ns; ++k) {
+    const int v = ids[static_cast<std::size_t>(k)];
+    rest.col(k) = model.V.col(v);
+    weights.nodes.col(k) = model.vertex_weights.nodes.col(v);
+    weights.weights.col(k) = model.vertex_weights.weights.col(v);
+  }
+  const std::vector<int> target_ids = Spread(target.cols(), options.target_samples);
+  Eigen::Matrix3Xd seen(3, static_cast<Eigen::Index>(target_ids.size()));
+  for (std::size_t k = 0; k < target_ids.size(); ++k)
+    seen.col(static_cast<Eigen::Index>(k)) = back(target.col(target_ids[k]));
+  const std::vector<Eigen::Vector3d> directions = SphereDirections(options.limb_swing_directions);
+
+  std::vector<int> order(static_cast<std::size_t>(num_limbs));
+  for (int a = 0; a < num_limbs; ++a) order[static_cast<std::size_t>(a)] = a;
+  std::stable_sort(order.begin(), order.end(), [&](int x, int y) {
+    return guide.template_length[static_cast<std::size_t>(x)] >
+           guide.template_length[static_cast<std::size_t>(y)];
+  });
+  std::vector<double> scores(directions.size());
+  for (const int a : order) {
+    const Eigen::Matrix3Xd posed = DeformPoints(model.graph, weights, rest, state);
+    std::vector<Eigen::Index> mine, others;
+    for (Eigen::Index k = 0; k < ns; ++k)
+      (guide.vertex_branch[static_cast<std::size_t>(ids[static_cast<std::size_t>(k)])] == a
+           ? mine
+           : others)
+          .push_back(k);
+    if (mine.size() < 3 || others.empty()) continue;
+    const Eigen::Matrix3Xd limb = posed(Eigen::all, mine);
+    const Eigen::Matrix3Xd trunk = posed(Eigen::all, others);
+    NodeWeights root_weights;
+    root_weights.nodes = guide.template_weights.nodes.col(BranchGuide::Column(a, 0));
+    root_weights.weights = guide.template_weights.weights.col(BranchGuide::Column(a, 0));
+    const Eigen::Vector3d root =
+        DeformPoints(model.graph, root_weights,
+                     Eigen::Matrix3Xd(guide.template_rest.col(BranchGuide::Column(a, 0))), state)
+            .col(0);
+    const Eigen::Vector3d axis = limb.rowwise().mean() - root;
+    if (!(axis.norm() > 0)) continue;
+    const double reach = (limb.colwise() - root).colwise().norm().maxCoeff();
+    // The target's samples the limb can change: nearer its reach than to the rest of the
+    // template and the cap. The others count the same in every direction.
+    const PointIndex trunk_index(trunk);
+    std::vector<Eigen::Index> near;
+    std::vector<double> elsewhere;
+    for (Eigen::Index y = 0; y < seen.cols(); ++y) {
+      const double d =
+          std::min(cap, (trunk.col(trunk_index.Nearest(seen.col(y))) - seen.col(y)).norm());
+      if ((seen.col(y) - root).norm() - reach < d) {
+        near.push_back(y);
+        elsewhere.push_back(d);
+      }
+    }
+    const auto score = [&](const Eigen::Matrix3d& R) {
+      const Eigen::Matrix3Xd swung_limb = (R * (limb.colwise() - root)).colwise() + root;
+      double sum = 0.0;
+      for (Eigen::Index i = 0; i < swung_limb.cols(); ++i) {
+        const Eigen::Vector3d there = placement(swung_limb.col(i));
+        sum += std::min(cap,
+                        (target.col(target_index.Nearest(there)) - there).norm() / placement.scale);
+      }
+      for (std::size_t k = 0; k < near.size(); ++k) {
+        const double d =
+            (swung_limb.colwise() - seen.col(near[k])).colwise().squaredNorm().minCoeff();
+        sum += std::min(elsewhere[k], std::sqrt(d));
+      }
+      return sum;
+    };
+    const auto turn_to = [&](std::size_t k) {
+      return Eigen::Matrix3d(
+          Eigen::Quaterniond::FromTwoVectors(axis, directions[k]).toRotationMatrix());
+    };
+    ForEach(pool, static_cast<int>(directions.size()), [&](int k) {
+      scores[static_cast<std::size_t>(k)] = score(turn_to(static_cast<std::size_t>(k)));
+    });
+    const auto best =
+        static_cast<std::size_t>(std::min_element(scores.begin(), scores.end()) - scores.begin());
+    if (!(scores[best] < score(Eigen::Matrix3d::Identity()))) continue;
+    // Every graph node of the limb turns about the posed root: p -> R (T_j(p) - root) + root.
+    const Eigen::Matrix3d R = turn_to(best);
+    for (int j = 0; j < model.graph.num_nodes(); ++j) {
+      if (guide.node_branch[static_cast<std::size_t>(j)] != a) continue;
+      const auto jj = static_cast<std::size_t>(j);
+      const Eigen::Vector3d g = model.graph.nodes.col(j);
+      const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> turned = R * state.rotation(j);
+      state.R[jj] = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(turned.data());
+      state.t[jj] = R * (g + state.t[jj] - root) + root - g;
+    }
+    if (swung != nullptr) ++*swung;
   }
   return state;
 }

@@ -7,6 +7,7 @@
 #include "morph/feature_association.h"
 #include "morph/point_index.h"
 #include "morph/template_model.h"
+#include "morph/worker_pool.h"
 
 namespace vb::morph {
 
@@ -30,10 +31,34 @@ namespace vb::morph {
 ///   guide's target side is in the same frame.
 /// @param[in] placement the template's normalised frame -> the target's.
 /// @param[out] turned when given, the number of limbs turned.
+/// @param current when given, the fit so far: a limb whose nodes it already has within
+///   options.limb_swing_cap (mean distance) of where the turn would put them is left to it.
 /// @pre the guide was made for @p model (MakeBranchGuide) and `placement.Usable()`.
 DeformationState TurnLimbs(const TemplateModel& model, const BranchGuide& guide,
                            const Eigen::Matrix3Xd& target, const PointIndex& target_index,
                            const Similarity& placement, const ArticulationOptions& options,
-                           int* turned = nullptr);
+                           int* turned = nullptr, const DeformationState* current = nullptr);
+
+/// Node transforms from @p start with each template limb swung as a whole about its root (as
+/// @p start poses it) to the direction in which it best explains the target: the limb's axis
+/// (from its root to the centroid of its samples) is laid on each of
+/// options.limb_swing_directions directions spread over the sphere, by the least rotation,
+/// and the one kept leaves the least two-way distance between the template's samples
+/// (options.template_samples, evenly spread, the limb's swung) and the target's
+/// (options.target_samples), each distance capped at options.limb_swing_cap template sizes.
+/// A limb is swung only when a direction beats its own. Limbs go longest first, each against
+/// the others as already swung. Unlike TurnLimbs it reads no skeleton of the target: only the
+/// template's limbs (BranchGuide::vertex_branch, node_branch) and their roots.
+/// @param[in] target 3 by N points in the target's frame, indexed by @p target_index.
+/// @param[in] placement the template's normalised frame -> the target's.
+/// @param[out] swung when given, the number of limbs swung.
+/// @param pool when given, the directions are scored on its threads (the same result on any
+///   number of threads).
+/// @pre the guide was made for @p model (MakeBranchGuide) and `placement.Usable()`.
+DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide,
+                            const Eigen::Matrix3Xd& target, const PointIndex& target_index,
+                            const Similarity& placement, const DeformationState& start,
+                            const ArticulationOptions& options, int* swung = nullptr,
+                            WorkerPool* pool = nullptr);
 
 }  // namespace vb::morph
