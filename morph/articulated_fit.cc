@@ -35,14 +35,6 @@ double TrimmedMean(std::vector<double> d, double keep_fraction) {
   return count > 0 ? sum / count : 0.0;
 }
 
-// Evenly spread column indices of a matrix with @p n columns, about @p wanted of them.
-std::vector<int> Spread(Eigen::Index n, int wanted) {
-  std::vector<int> out;
-  const Eigen::Index step = std::max<Eigen::Index>(1, n / std::max(1, wanted));
-  for (Eigen::Index i = 0; i < n; i += step) out.push_back(static_cast<int>(i));
-  return out;
-}
-
 // Whether two normals of either sign are within the angle whose cosine is @p min_cos; a zero
 // normal (no direction known) is compatible with any.
 bool FacingAlike(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double min_cos) {
@@ -62,6 +54,24 @@ int NearestFacingAlike(const PointIndex& index, const Eigen::Matrix3Xd& normals,
 }
 
 }  // namespace
+
+std::vector<int> Spread(Eigen::Index n, int wanted) {
+  std::vector<int> out;
+  const Eigen::Index step = std::max<Eigen::Index>(1, n / std::max(1, wanted));
+  for (Eigen::Index i = 0; i < n; i += step) out.push_back(static_cast<int>(i));
+  return out;
+}
+
+TemplateSamples SampleTemplate(const TemplateModel& model, int wanted) {
+  TemplateSamples out;
+  out.ids = Spread(model.V.cols(), wanted);
+  const auto n = static_cast<Eigen::Index>(out.ids.size());
+  out.rest = model.V(Eigen::all, out.ids);
+  out.weights.nodes = model.vertex_weights.nodes(Eigen::all, out.ids);
+  out.weights.weights = model.vertex_weights.weights(Eigen::all, out.ids);
+  VB_DEMAND(out.rest.cols() == n);
+  return out;
+}
 
 std::vector<std::pair<int, int>> PairBranches(const BranchGuide& guide,
                                               const Eigen::Matrix3Xd& posed,
@@ -117,7 +127,6 @@ BranchGuide MakeBranchGuide(const TemplateModel& model, const SkeletonGraph& tar
   // Each graph node's limb: the branch whose skeleton nodes stand for its vertex.
   const auto num_vertices = static_cast<std::size_t>(model.V.cols());
   std::vector<int> vertex_branch(num_vertices, -1);
-  std::vector<double> vertex_fraction(num_vertices, 0.0);
   for (std::size_t a = 0; a < mine.size(); ++a) {
     const SkeletonBranch& branch = mine[a];
     if (!(branch.length() > 0)) continue;
@@ -128,15 +137,12 @@ BranchGuide MakeBranchGuide(const TemplateModel& model, const SkeletonGraph& tar
         const auto s = static_cast<std::size_t>(v);
         if (v < 0 || s >= num_vertices || vertex_branch[s] >= 0) continue;
         vertex_branch[s] = static_cast<int>(a);
-        vertex_fraction[s] = branch.distance[k] / branch.length();
       }
     }
   }
-  guide.vertex_branch = vertex_branch;
-  for (const int v : model.graph.node_vertex) {
+  for (const int v : model.graph.node_vertex)
     guide.node_branch.push_back(vertex_branch[static_cast<std::size_t>(v)]);
-    guide.node_fraction.push_back(vertex_fraction[static_cast<std::size_t>(v)]);
-  }
+  guide.vertex_branch = std::move(vertex_branch);
   guide.target_points.resize(3, static_cast<Eigen::Index>(theirs.size()) * kSamples);
   for (std::size_t b = 0; b < theirs.size(); ++b) {
     guide.target_length.push_back(theirs[b].length());
@@ -204,18 +210,11 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
   result.state = start;
 
   // The template samples with their node weights, and the target samples.
-  const std::vector<int> template_ids = Spread(model.V.cols(), options.template_samples);
+  const TemplateSamples sampled = SampleTemplate(model, options.template_samples);
+  const std::vector<int>& template_ids = sampled.ids;
+  const Eigen::Matrix3Xd& rest = sampled.rest;
+  const NodeWeights& weights = sampled.weights;
   const auto ns = static_cast<Eigen::Index>(template_ids.size());
-  Eigen::Matrix3Xd rest(3, ns);
-  NodeWeights weights;
-  weights.nodes.resize(model.vertex_weights.nodes.rows(), ns);
-  weights.weights.resize(model.vertex_weights.weights.rows(), ns);
-  for (Eigen::Index k = 0; k < ns; ++k) {
-    const int v = template_ids[static_cast<std::size_t>(k)];
-    rest.col(k) = model.V.col(v);
-    weights.nodes.col(k) = model.vertex_weights.nodes.col(v);
-    weights.weights.col(k) = model.vertex_weights.weights.col(v);
-  }
   // The target samples in the target's frame (for the final disagreement) and in the
   // template's (for the fit).
   const std::vector<int> target_ids = Spread(target.cols(), options.target_samples);
@@ -330,10 +329,12 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
         const double lb = guide->target_length[static_cast<std::size_t>(b)] / placement.scale;
         const double shorter = std::min(la, lb);
         for (const double share : {0.5, 0.75, 1.0}) {
-          const Eigen::Index from = BranchGuide::Column(a, BranchGuide::SampleAt(share * shorter / la));
-          PointConstraint c =
-              ConstrainPoint(guide->template_weights, from, guide->template_rest.col(from),
-                             branch_targets.col(BranchGuide::Column(b, BranchGuide::SampleAt(share * shorter / lb))));
+          const Eigen::Index from =
+              BranchGuide::Column(a, BranchGuide::SampleAt(share * shorter / la));
+          const Eigen::Index to =
+              BranchGuide::Column(b, BranchGuide::SampleAt(share * shorter / lb));
+          PointConstraint c = ConstrainPoint(guide->template_weights, from,
+                                             guide->template_rest.col(from), branch_targets.col(to));
           c.weight = per_pair * branch_weight;
           constraints.push_back(std::move(c));
         }

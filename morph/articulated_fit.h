@@ -107,7 +107,8 @@ struct ArticulationOptions {
 };
 
 /// Both skeletons' limbs (TerminalBranches), each sampled at kSamples evenly spaced arc
-/// lengths from its root to its tip, for ArticulationOptions' branch pulls.
+/// lengths from its root to its tip, for ArticulationOptions' branch pulls, TurnLimbs and
+/// SwingLimbs.
 struct BranchGuide {
   static constexpr int kSamples = 21;
   /// The column of sample @p k of branch @p b in the matrices below.
@@ -123,9 +124,8 @@ struct BranchGuide {
   NodeWeights template_weights;         ///< eq. (10) weights of those points
   std::vector<double> template_length;  ///< per branch, template sizes
   /// Per deformation-graph node: the template branch whose limb it lies on (-1: the trunk,
-  /// or a root) and how far out along that branch, a fraction of its length (TurnLimbs).
+  /// or a root), for TurnLimbs and SwingLimbs.
   std::vector<int> node_branch;
-  std::vector<double> node_fraction;
   /// Per template vertex: the branch whose limb it lies on (-1: the trunk).
   std::vector<int> vertex_branch;
   /// Target side, in the target's frame and units, likewise.
@@ -136,6 +136,19 @@ struct BranchGuide {
   int num_template_branches() const { return static_cast<int>(template_length.size()); }
   int num_target_branches() const { return static_cast<int>(target_length.size()); }
 };
+
+/// Evenly spread column indices of a matrix with @p n columns, about @p wanted of them (every
+/// n / wanted-th, from the first).
+std::vector<int> Spread(Eigen::Index n, int wanted);
+
+/// About @p wanted template vertices, evenly spread (Spread), with their rest positions
+/// (normalised frame) and eq. (10) node weights, as the posture fit pairs them.
+struct TemplateSamples {
+  std::vector<int> ids;
+  Eigen::Matrix3Xd rest;  ///< 3 by #ids
+  NodeWeights weights;    ///< of each column of rest
+};
+TemplateSamples SampleTemplate(const TemplateModel& model, int wanted);
 
 /// The guide between @p model's skeleton and a target's (@p target_skeleton and the
 /// @p target_features extracted from it, in the target's frame). A template vertex, and so a

@@ -390,10 +390,10 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     phase = std::chrono::steady_clock::now();
     ArticulationOptions rest = options.articulation;
     rest.rounds = std::max(0, options.articulation.rounds - options.choice_rounds);
-    rest.stiffness_start = std::max(
-        options.articulation.min_stiffness,
-        options.articulation.stiffness_start *
-            std::pow(options.articulation.stiffness_decay, options.choice_rounds));
+    rest.stiffness_start =
+        std::max(options.articulation.min_stiffness,
+                 options.articulation.stiffness_start *
+                     std::pow(options.articulation.stiffness_decay, options.choice_rounds));
     const bool turn_limbs = options.articulation.limb_turn_gain > 0;
     const BranchGuide guide = (rest.branch_weight > 0 && rest.rounds > 0) || turn_limbs
                                   ? MakeBranchGuide(model, skeleton, result.target_features)
@@ -407,28 +407,31 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     // target's limbs (TurnLimbs) and from them swung to where they explain the target best
     // (SwingLimbs), the better kept when it covers the target clearly better than the first.
     if (turn_limbs) {
-      const double first = fit.disagreement;
-      const auto fit_again = [&](const DeformationState& from, int moved) {
-        if (moved == 0) return;
-        ArticulationResult again =
-            ArticulateTemplate(model, target, target_index, result.target_features.terminals,
-                               from, options.articulation, to_target, &guide,
-                               posture_normals_or_none());
-        if (again.ok && again.disagreement < options.articulation.limb_turn_gain * first &&
-            again.disagreement < fit.disagreement) {
-          result.limbs_turned = moved;
-          iterations = again.rounds;
-          fit = std::move(again);
-        }
-      };
-      int moved = 0;
-      const DeformationState turned =
-          TurnLimbs(model, guide, target, target_index, to_target, options.articulation, &moved,
-                    &first_state);
-      fit_again(turned, moved);
-      const DeformationState swung = SwingLimbs(model, guide, target, target_index, to_target,
-                                                first_state, options.articulation, &moved, pool);
-      fit_again(swung, moved);
+      std::array<int, 2> moved{0, 0};
+      const std::array<DeformationState, 2> starts{
+          TurnLimbs(model, guide, target, target_index, to_target, options.articulation, &moved[0],
+                    &first_state),
+          SwingLimbs(model, guide, target, target_index, to_target, first_state,
+                     options.articulation, &moved[1], pool)};
+      // The two fits are independent: each on one of the pool's threads; the turned one is
+      // preferred on a tie, whatever the threads.
+      std::array<ArticulationResult, 2> again;
+      ForEach(pool, 2, [&](int k) {
+        const auto s = static_cast<std::size_t>(k);
+        if (moved[s] == 0) return;
+        again[s] = ArticulateTemplate(model, target, target_index, result.target_features.terminals,
+                                      starts[s], options.articulation, to_target, &guide,
+                                      posture_normals_or_none());
+      });
+      const double limit = options.articulation.limb_turn_gain * fit.disagreement;
+      for (std::size_t k = 0; k < 2; ++k) {
+        if (!again[k].ok || !(again[k].disagreement < limit) ||
+            !(again[k].disagreement < fit.disagreement))
+          continue;
+        result.limbs_turned = moved[k];
+        iterations = again[k].rounds;
+        fit = std::move(again[k]);
+      }
     }
     result.state = std::move(fit.state);
     result.disagreement = fit.disagreement;
@@ -436,7 +439,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     result.deformation.iterations = iterations;
     result.deformation.message =
         result.limbs_turned > 0
-            ? "posture fit, " + std::to_string(result.limbs_turned) + " limbs turned"
+            ? "posture fit, " + std::to_string(result.limbs_turned) + " limbs turned or swung"
             : std::string("posture fit");
     result.deformation_seconds = Since(phase);
     Finish(model, to_target, DeformPoints(model.graph, model.vertex_weights, model.V, result.state),

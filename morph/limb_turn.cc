@@ -52,14 +52,6 @@ double MeanNearest(const Eigen::Matrix3Xd& from, const Eigen::Matrix3Xd& to) {
   return sum / static_cast<double>(from.cols());
 }
 
-// Evenly spread column indices of a matrix with @p n columns, about @p wanted of them.
-std::vector<int> Spread(Eigen::Index n, int wanted) {
-  std::vector<int> out;
-  const Eigen::Index step = std::max<Eigen::Index>(1, n / std::max(1, wanted));
-  for (Eigen::Index i = 0; i < n; i += step) out.push_back(static_cast<int>(i));
-  return out;
-}
-
 // @p count unit vectors spread evenly over the sphere (a Fibonacci lattice).
 std::vector<Eigen::Vector3d> SphereDirections(int count) {
   std::vector<Eigen::Vector3d> out;
@@ -78,8 +70,10 @@ DeformationState TurnLimbs(const TemplateModel& model, const BranchGuide& guide,
                            const Eigen::Matrix3Xd& target, const PointIndex& target_index,
                            const Similarity& placement, const ArticulationOptions& options,
                            int* turned, const DeformationState* current) {
+  VB_DEMAND(target.cols() > 0 && target_index.size() == target.cols());
   VB_DEMAND(placement.Usable());
   VB_DEMAND(static_cast<int>(guide.node_branch.size()) == model.graph.num_nodes());
+  VB_DEMAND(current == nullptr || static_cast<int>(current->t.size()) == model.graph.num_nodes());
   DeformationState state = DeformationState::Identity(model.graph.num_nodes());
   if (turned != nullptr) *turned = 0;
   if (guide.num_template_branches() == 0 || guide.num_target_branches() == 0) return state;
@@ -108,30 +102,33 @@ DeformationState TurnLimbs(const TemplateModel& model, const BranchGuide& guide,
       moved.col(i) = R * (rest.col(i) - root) + root;
       now.col(i) = current != nullptr ? Eigen::Vector3d(rest.col(i) + current->t[j]) : rest.col(i);
     }
-    // A limb the fit so far already brought about where the turn would is left to it.
-    if (current != nullptr && (moved - now).colwise().norm().mean() < options.limb_swing_cap)
-      continue;
-    // The limb's nodes to the target, in the target's frame.
-    double before = 0.0, after = 0.0;
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const Eigen::Vector3d r = placement(rest.col(i)), m = placement(moved.col(i));
-      before += (target.col(target_index.Nearest(r)) - r).norm();
-      after += (target.col(target_index.Nearest(m)) - m).norm();
+    // A limb the fit so far already brought about where the turn would: turned in the start
+    // (not left at rest), but no reason to fit again.
+    const bool done =
+        current != nullptr && (moved - now).colwise().norm().mean() < options.limb_swing_cap;
+    if (!done) {
+      // The limb's nodes to the target, in the target's frame.
+      double before = 0.0, after = 0.0;
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const Eigen::Vector3d r = placement(rest.col(i)), m = placement(moved.col(i));
+        before += (target.col(target_index.Nearest(r)) - r).norm();
+        after += (target.col(target_index.Nearest(m)) - m).norm();
+      }
+      if (!(after < before)) continue;
+      // The target limb's points to the limb's nodes, in the template's frame.
+      const std::size_t step = (support.size() + kCheckPoints - 1) / kCheckPoints;
+      Eigen::Matrix3Xd seen(3, static_cast<Eigen::Index>((support.size() + step - 1) / step));
+      for (std::size_t i = 0, k = 0; i < support.size(); i += step, ++k)
+        seen.col(static_cast<Eigen::Index>(k)) = back(target.col(support[i]));
+      if (!(MeanNearest(seen, moved) < MeanNearest(seen, rest))) continue;
     }
-    if (!(after < before)) continue;
-    // The target limb's points to the limb's nodes, in the template's frame.
-    const std::size_t step = std::max<std::size_t>(1, support.size() / kCheckPoints);
-    Eigen::Matrix3Xd seen(3, static_cast<Eigen::Index>((support.size() + step - 1) / step));
-    for (std::size_t i = 0, k = 0; i < support.size(); i += step, ++k)
-      seen.col(static_cast<Eigen::Index>(k)) = back(target.col(support[i]));
-    if (!(MeanNearest(seen, moved) < MeanNearest(seen, rest))) continue;
     const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> row_major = R;
     for (Eigen::Index i = 0; i < n; ++i) {
       const auto j = static_cast<std::size_t>(nodes[static_cast<std::size_t>(i)]);
       state.R[j] = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(row_major.data());
       state.t[j] = moved.col(i) - rest.col(i);
     }
-    if (turned != nullptr) ++*turned;
+    if (turned != nullptr && !done) ++*turned;
   }
   return state;
 }
@@ -140,9 +137,11 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
                             const Eigen::Matrix3Xd& target, const PointIndex& target_index,
                             const Similarity& placement, const DeformationState& start,
                             const ArticulationOptions& options, int* swung, WorkerPool* pool) {
+  VB_DEMAND(target.cols() > 0 && target_index.size() == target.cols());
   VB_DEMAND(placement.Usable());
   VB_DEMAND(static_cast<int>(guide.node_branch.size()) == model.graph.num_nodes());
   VB_DEMAND(guide.vertex_branch.size() == static_cast<std::size_t>(model.V.cols()));
+  VB_DEMAND(static_cast<int>(start.t.size()) == model.graph.num_nodes());
   DeformationState state = start;
   if (swung != nullptr) *swung = 0;
   const int num_limbs = guide.num_template_branches();
@@ -151,18 +150,9 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
   const double cap = options.limb_swing_cap;
 
   // The template's samples with their node weights, and the target's in the template's frame.
-  const std::vector<int> ids = Spread(model.V.cols(), options.template_samples);
+  const TemplateSamples sampled = SampleTemplate(model, options.template_samples);
+  const std::vector<int>& ids = sampled.ids;
   const auto ns = static_cast<Eigen::Index>(ids.size());
-  Eigen::Matrix3Xd rest(3, ns);
-  NodeWeights weights;
-  weights.nodes.resize(model.vertex_weights.nodes.rows(), ns);
-  weights.weights.resize(model.vertex_weights.weights.rows(), ns);
-  for (Eigen::Index k = 0; k < ns; ++k) {
-    const int v = ids[static_cast<std::size_t>(k)];
-    rest.col(k) = model.V.col(v);
-    weights.nodes.col(k) = model.vertex_weights.nodes.col(v);
-    weights.weights.col(k) = model.vertex_weights.weights.col(v);
-  }
   const std::vector<int> target_ids = Spread(target.cols(), options.target_samples);
   Eigen::Matrix3Xd seen(3, static_cast<Eigen::Index>(target_ids.size()));
   for (std::size_t k = 0; k < target_ids.size(); ++k)
@@ -175,9 +165,13 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
     return guide.template_length[static_cast<std::size_t>(x)] >
            guide.template_length[static_cast<std::size_t>(y)];
   });
+  std::vector<bool> has_nodes(static_cast<std::size_t>(num_limbs), false);
+  for (const int a : guide.node_branch)
+    if (a >= 0) has_nodes[static_cast<std::size_t>(a)] = true;
   std::vector<double> scores(directions.size());
   for (const int a : order) {
-    const Eigen::Matrix3Xd posed = DeformPoints(model.graph, weights, rest, state);
+    if (!has_nodes[static_cast<std::size_t>(a)]) continue;  // nothing it could move
+    const Eigen::Matrix3Xd posed = DeformPoints(model.graph, sampled.weights, sampled.rest, state);
     std::vector<Eigen::Index> mine, others;
     for (Eigen::Index k = 0; k < ns; ++k)
       (guide.vertex_branch[static_cast<std::size_t>(ids[static_cast<std::size_t>(k)])] == a

@@ -43,9 +43,10 @@ DeformationState TurnLimbs(const TemplateModel& model, const BranchGuide& guide,
 /// @p start poses it) to the direction in which it best explains the target: the limb's axis
 /// (from its root to the centroid of its samples) is laid on each of
 /// options.limb_swing_directions directions spread over the sphere, by the least rotation,
-/// and the one kept leaves the least two-way distance between the template's samples
-/// (options.template_samples, evenly spread, the limb's swung) and the target's
-/// (options.target_samples), each distance capped at options.limb_swing_cap template sizes.
+/// and the one kept leaves the least two-way distance: from the limb's samples (of
+/// options.template_samples evenly spread over the template) to the target's nearest points,
+/// and from the target's samples (options.target_samples) to the template's, each distance
+/// capped at options.limb_swing_cap template sizes.
 /// A limb is swung only when a direction beats its own. Limbs go longest first, each against
 /// the others as already swung. Unlike TurnLimbs it reads no skeleton of the target: only the
 /// template's limbs (BranchGuide::vertex_branch, node_branch) and their roots.

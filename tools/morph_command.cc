@@ -7,6 +7,7 @@
 #include <numbers>
 #include <vector>
 
+#include "geometry/mesh_measures.h"
 #include "io/annotations.h"
 #include "io/error.h"
 #include "io/mesh_io.h"
@@ -84,15 +85,12 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   // Every length printed below reads the target as metres. A scan exported in millimetres (or
   // centimetres) morphs just as well, the morph being free of scale, but reads 1000 (or 100)
   // times too large.
-  if (const double across =
-          target.points.cols() > 0
-              ? (target.points.rowwise().maxCoeff() - target.points.rowwise().minCoeff()).norm()
-              : 0.0;
+  if (const double across = geometry::BoundingBoxDiagonal(target.points);
       across > kMostMetresAcross || (across > 0 && across < kLeastMetresAcross)) {
     std::fprintf(stderr,
                  "vbutcher: morph: warning: %s is %.4g across, read as metres: is it in other "
-                 "units (millimetres read 1000 times too large)? Lengths, volumes and areas below "
-                 "are in its own units\n",
+                 "units? Every length, volume and area below assumes metres (a file in "
+                 "millimetres reads 1000 times too large)\n",
                  options.target_path.string().c_str(), across);
   }
   // The full stage is the pipeline's own path (morph, whole-morph check, cuts).

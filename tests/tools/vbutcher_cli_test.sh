@@ -137,6 +137,13 @@ awk 'body { $1 *= 1000; $2 *= 1000; $3 *= 1000 } { print } /^end_header/ { body 
 check "morph warns that a scan 1000 times a body's size is read as metres" 0 \
   "millimetres.ply is [0-9.]* across, read as metres" \
   "$vbutcher" morph --template "$work/set/template.ply" --target "$work/millimetres.ply" --out "$work/mm.ply"
+# ... and the scan in metres morphs without it.
+if "$vbutcher" morph --template "$work/set/template.ply" --target "$work/zero_normals.ply" \
+     --out "$work/m.ply" 2>&1 | grep -q "read as metres"; then
+  echo "FAIL: a scan in metres was warned about its units"; failures=$((failures + 1))
+else
+  echo "ok: a scan in metres is not warned about its units"
+fi
 # A cloud much denser than its noise: the morph reads and uses it at every n-th point.
 check "synth writes a dense noisy cloud" 0 "template:" "$vbutcher" synth --out "$work/dense" --count 1 \
   --seed 5 --sigma-mm 16 --cloud --cloud-points 80000
