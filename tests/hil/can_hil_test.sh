@@ -47,12 +47,15 @@ if [ -x "$vbd" ]; then
   # Part E: the daemon's own frames. A morph under the VM's software emulation would be far
   # too slow for the line, so the daemon runs here on carcasses, with the in-process saw, and
   # records every frame it sends (can.record); the VM replays them onto vcan0 with canplayer,
-  # at their recorded pace, to the reference saw there.
+  # at their recorded pace, to the reference saw there. E checks the frames, not the speed
+  # (bench daemon measures that): on a 2-core machine that also runs the virtual cameras and
+  # other tests, a morph took 1.2 to 2.2 s, past the line's 2 s deadline, so the recording
+  # allows 10 s.
   "$vbutcher" virtual-rig --out "$d/rig4" >/dev/null
   sed -i '/^carcass:/d' "$d/rig4/scene.yaml"
   printf '%s\n' "format: virtualbutcherd-config" "version: 1" "template: lamb.vbt" \
     "rig: rig4/rig.yaml" "virtual_scene: rig4/scene.yaml" 'lcm: {url: "memq://"}' \
-    "can: {interface: loopback, record: frames.log}" "job: {state_file: job-state}" \
+    "can: {interface: loopback, record: frames.log}" "job: {state_file: job-state, morph_deadline_ms: 10000}" \
     "morph: {template_up: [0, 0, 1], rig_up: [0, 0, 1], max_tilt_deg: 45}" \
     "X_SawRig: {translation: [0, 0, 1.8], rotation_wxyz: [1, 0, 0, 0]}" >"$d/record.yaml"
   "$vbd" --config "$d/record.yaml" --max-jobs 5 --run-seconds 90 2>"$d/record.log" &
