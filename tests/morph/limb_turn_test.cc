@@ -225,6 +225,19 @@ class TurnLimbsTest : public test::LambTemplateTest {
       out.col(i) = model_->Normalise(posed.mesh.V.col(i));
     return out;
   }
+
+  // A similarity that turns, moves and scales by 2.5, for handing a target over in a frame of
+  // its own.
+  static Similarity OtherFrame() {
+    return Similarity{
+        2.5, Eigen::AngleAxisd(1.1, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix(),
+        Eigen::Vector3d(0.4, -3.0, 1.5)};
+  }
+  static Eigen::Matrix3Xd Moved(const Similarity& placement, const Eigen::Matrix3Xd& points) {
+    Eigen::Matrix3Xd out(3, points.cols());
+    for (Eigen::Index i = 0; i < points.cols(); ++i) out.col(i) = placement(points.col(i));
+    return out;
+  }
 };
 
 TEST_F(TurnLimbsTest, LeavesATargetInTheTemplatesOwnPoseAlone) {
@@ -244,11 +257,8 @@ TEST_F(TurnLimbsTest, SwingsTheSameInTheTargetsOwnFrame) {
   // The swung leg handed over turned, moved and 2.5 times larger, with the similarity between
   // the frames: the same node transforms.
   const Eigen::Matrix3Xd here = SwungLeg(100.0);
-  const Similarity placement{
-      2.5, Eigen::AngleAxisd(1.1, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix(),
-      Eigen::Vector3d(0.4, -3.0, 1.5)};
-  Eigen::Matrix3Xd there(3, here.cols());
-  for (Eigen::Index i = 0; i < here.cols(); ++i) there.col(i) = placement(here.col(i));
+  const Similarity placement = OtherFrame();
+  const Eigen::Matrix3Xd there = Moved(placement, here);
   const BranchGuide guide = GuideTo(*model_, here);  // its target side is not read
   const PointIndex here_index(here), there_index(there);
   const DeformationState identity = DeformationState::Identity(model_->graph.num_nodes());
@@ -291,17 +301,13 @@ TEST_F(TurnLimbsTest, IsTheSameInTheTargetsOwnFrame) {
   // The target handed over turned, moved and 2.5 times larger, with the similarity between
   // the frames: the same node transforms.
   const Eigen::Matrix3Xd here = SwungLeg(100.0);
-  const Similarity placement{
-      2.5, Eigen::AngleAxisd(1.1, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix(),
-      Eigen::Vector3d(0.4, -3.0, 1.5)};
-  Eigen::Matrix3Xd there(3, here.cols());
-  for (Eigen::Index i = 0; i < here.cols(); ++i) there.col(i) = placement(here.col(i));
+  const Similarity placement = OtherFrame();
+  const Eigen::Matrix3Xd there = Moved(placement, here);
   // One skeleton for both (a voxel grid is not turned with the points): the guide's target
   // side carried over.
   const BranchGuide guide_here = GuideTo(*model_, here);
   BranchGuide guide_there = guide_here;
-  for (Eigen::Index k = 0; k < guide_there.target_points.cols(); ++k)
-    guide_there.target_points.col(k) = placement(guide_here.target_points.col(k));
+  guide_there.target_points = Moved(placement, guide_here.target_points);
   for (double& length : guide_there.target_length) length *= placement.scale;
   const PointIndex here_index(here), there_index(there);
   int turned_here = 0, turned_there = 0;
