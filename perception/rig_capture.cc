@@ -7,6 +7,7 @@
 #include <xxhash.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <mutex>
 #include <stdexcept>
@@ -54,21 +55,8 @@ void ReleaseOpenNi() {
 namespace {
 
 std::string DescribeMode(const openni::VideoMode& mode) {
-  const char* format = "?";
-  switch (mode.getPixelFormat()) {
-    case openni::PIXEL_FORMAT_DEPTH_1_MM: format = "depth 1 mm"; break;
-    case openni::PIXEL_FORMAT_DEPTH_100_UM: format = "depth 100 um"; break;
-    case openni::PIXEL_FORMAT_SHIFT_9_2: format = "shift 9.2"; break;
-    case openni::PIXEL_FORMAT_SHIFT_9_3: format = "shift 9.3"; break;
-    case openni::PIXEL_FORMAT_RGB888: format = "RGB888"; break;
-    case openni::PIXEL_FORMAT_YUV422: format = "YUV422"; break;
-    case openni::PIXEL_FORMAT_GRAY8: format = "gray 8"; break;
-    case openni::PIXEL_FORMAT_GRAY16: format = "gray 16"; break;
-    case openni::PIXEL_FORMAT_JPEG: format = "JPEG"; break;
-    case openni::PIXEL_FORMAT_YUYV: format = "YUYV"; break;
-  }
   return std::to_string(mode.getResolutionX()) + "x" + std::to_string(mode.getResolutionY()) + " " +
-         std::to_string(mode.getFps()) + " fps " + format;
+         std::to_string(mode.getFps()) + " fps " + DescribePixelFormat(mode.getPixelFormat());
 }
 
 std::vector<std::string> Modes(const openni::SensorInfo* info) {
@@ -80,6 +68,42 @@ std::vector<std::string> Modes(const openni::SensorInfo* info) {
 }
 
 }  // namespace
+
+std::string DescribePixelFormat(int oni_pixel_format) {
+  switch (oni_pixel_format) {
+    case openni::PIXEL_FORMAT_DEPTH_1_MM: return "depth 1 mm";
+    case openni::PIXEL_FORMAT_DEPTH_100_UM: return "depth 100 um";
+    case openni::PIXEL_FORMAT_SHIFT_9_2: return "shift 9.2";
+    case openni::PIXEL_FORMAT_SHIFT_9_3: return "shift 9.3";
+    case openni::PIXEL_FORMAT_RGB888: return "RGB888";
+    case openni::PIXEL_FORMAT_YUV422: return "YUV422";
+    case openni::PIXEL_FORMAT_GRAY8: return "gray 8";
+    case openni::PIXEL_FORMAT_GRAY16: return "gray 16";
+    case openni::PIXEL_FORMAT_JPEG: return "JPEG";
+    case openni::PIXEL_FORMAT_YUYV: return "YUYV";
+    default: return "format " + std::to_string(oni_pixel_format);
+  }
+}
+
+bool CopyDepthAsMillimetres(int oni_pixel_format, const std::uint16_t* src, int stride_px,
+                            int width, int height, std::uint16_t* depth_mm) {
+  if (oni_pixel_format == openni::PIXEL_FORMAT_DEPTH_1_MM) {
+    for (int v = 0; v < height; ++v)
+      std::memcpy(depth_mm + static_cast<std::ptrdiff_t>(v) * width,
+                  src + static_cast<std::ptrdiff_t>(v) * stride_px,
+                  static_cast<std::size_t>(width) * 2);
+    return true;
+  }
+  if (oni_pixel_format == openni::PIXEL_FORMAT_DEPTH_100_UM) {
+    for (int v = 0; v < height; ++v) {
+      const std::uint16_t* row = src + static_cast<std::ptrdiff_t>(v) * stride_px;
+      std::uint16_t* out = depth_mm + static_cast<std::ptrdiff_t>(v) * width;
+      for (int u = 0; u < width; ++u) out[u] = static_cast<std::uint16_t>((row[u] + 5u) / 10u);
+    }
+    return true;
+  }
+  return false;
+}
 
 std::vector<DeviceListing> ListDevices() {
   AcquireOpenNi();
@@ -110,6 +134,59 @@ std::vector<DeviceListing> ListDevices() {
   }
   ReleaseOpenNi();
   return out;
+}
+
+DeviceListing DescribeUri(const std::string& uri) {
+  DeviceListing d;
+  d.uri = uri;
+  if (io::IsOniUri(uri)) {
+    try {
+      (void)io::CheckOniFile(uri);
+    } catch (const InputError& e) {
+      d.error = e.what();
+      return d;
+    }
+  }
+  AcquireOpenNi();
+  openni::Device device;
+  if (device.open(uri.c_str()) != openni::STATUS_OK) {
+    d.error = std::string("cannot be opened: ") + openni::OpenNI::getExtendedError();
+    ReleaseOpenNi();
+    return d;
+  }
+  const openni::DeviceInfo& info = device.getDeviceInfo();
+  d.vendor = info.getVendor();
+  d.name = info.getName();
+  d.usb_vendor_id = info.getUsbVendorId();
+  d.usb_product_id = info.getUsbProductId();
+  char serial[64] = {};
+  int size = sizeof(serial);
+  if (device.getProperty(ONI_DEVICE_PROPERTY_SERIAL_NUMBER, serial, &size) == openni::STATUS_OK)
+    d.serial = serial;
+  d.depth_modes = Modes(device.getSensorInfo(openni::SENSOR_DEPTH));
+  d.colour_modes = Modes(device.getSensorInfo(openni::SENSOR_COLOR));
+  openni::VideoStream depth;
+  if (device.hasSensor(openni::SENSOR_DEPTH) &&
+      depth.create(device, openni::SENSOR_DEPTH) == openni::STATUS_OK) {
+    const openni::VideoMode mode = depth.getVideoMode();
+    d.depth_mode = DescribeMode(mode);
+    d.depth_width = mode.getResolutionX();
+    d.depth_height = mode.getResolutionY();
+    d.depth_readable = mode.getPixelFormat() == openni::PIXEL_FORMAT_DEPTH_1_MM ||
+                       mode.getPixelFormat() == openni::PIXEL_FORMAT_DEPTH_100_UM;
+    // A pinhole of that width over that angle; a field of view outside (0, pi) is not one.
+    const float h = depth.getHorizontalFieldOfView(), v = depth.getVerticalFieldOfView();
+    if (h > 0.0f && h < 3.14f) d.fx_from_fov = 0.5 * d.depth_width / std::tan(0.5 * h);
+    if (v > 0.0f && v < 3.14f) d.fy_from_fov = 0.5 * d.depth_height / std::tan(0.5 * v);
+    if (openni::PlaybackControl* playback = device.getPlaybackControl())
+      d.recorded_frames = playback->getNumberOfFrames(depth);
+    depth.destroy();
+  } else {
+    d.error = "no depth stream";
+  }
+  device.close();
+  ReleaseOpenNi();
+  return d;
 }
 
 std::int64_t MonotonicNs() {
@@ -166,6 +243,8 @@ struct RigCapture::Camera {
   // Why a recording (.oni) this camera plays was refused, set once before it is first opened
   // (status.last_error points at it): OpenNI2's player trusts the file's sizes.
   std::string refused;
+  // Why the depth stream's mode was refused (status.last_error points at it while it is).
+  std::string mode_error;
 };
 
 RigCapture::RigCapture(const RigCalibration& rig, const CaptureOptions& options)
@@ -275,6 +354,16 @@ void RigCapture::Open(Camera* cam) {
       return;
     }
   }
+  // A playback device, or a camera that refused the mode asked, may give depth in 100 um
+  // (read, converted) or disparity shifts (refused: they need the device's own tables).
+  const int format = cam->depth.getVideoMode().getPixelFormat();
+  if (format != openni::PIXEL_FORMAT_DEPTH_1_MM && format != openni::PIXEL_FORMAT_DEPTH_100_UM) {
+    cam->mode_error = "the depth stream gives " + DescribePixelFormat(format) +
+                      ", not depth in 1 mm or 100 um";
+    SetHealth(cam, CameraHealth::kMissing, now, cam->mode_error.c_str());
+    Close(cam);
+    return;
+  }
   if (options_.register_depth_to_color && cam->device.hasSensor(openni::SENSOR_COLOR) &&
       cam->device.isImageRegistrationModeSupported(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR)) {
     cam->device.setImageRegistrationMode(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR);
@@ -371,12 +460,13 @@ void RigCapture::Read(Camera* cam) {
     cam->status.last_error = "frame size differs from the calibration";
     return;
   }
-  const auto* src = static_cast<const std::uint16_t*>(ref.getData());
-  const int stride_px = ref.getStrideInBytes() / 2;
-  for (int v = 0; v < f.height; ++v)
-    std::memcpy(&f.depth_mm[static_cast<std::size_t>(v) * f.width],
-                src + static_cast<std::ptrdiff_t>(v) * stride_px,
-                static_cast<std::size_t>(f.width) * 2);
+  // Each frame's own format: a recording keeps the one it was made in.
+  if (!CopyDepthAsMillimetres(ref.getVideoMode().getPixelFormat(),
+                              static_cast<const std::uint16_t*>(ref.getData()),
+                              ref.getStrideInBytes() / 2, f.width, f.height, f.depth_mm.data())) {
+    cam->status.last_error = "a frame's pixel format is not depth in 1 mm or 100 um";
+    return;
+  }
   CameraStatus& s = cam->status;
   const std::uint64_t hash = XXH3_64bits(f.depth_mm.data(), f.depth_mm.size() * 2);
   s.identical_run = (s.frames > 0 && hash == f.hash) ? s.identical_run + 1 : 0;

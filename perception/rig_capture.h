@@ -127,12 +127,36 @@ struct DeviceListing {
   std::vector<std::string> depth_modes;   ///< e.g. "640x480 30 fps depth 1 mm"
   std::vector<std::string> colour_modes;  ///< e.g. "640x480 30 fps RGB888"
   std::string error;                      ///< why it could not be opened to read the above
+  // What its depth stream gives now (for a recording: what it was recorded in).
+  std::string depth_mode;      ///< e.g. "640x480 30 fps depth 100 um"; empty: no depth stream
+  int depth_width = 0, depth_height = 0;
+  bool depth_readable = false;  ///< depth in 1 mm or 100 um (capture reads it)
+  /// Focal lengths in pixels implied by the stream's fields of view (0: not reported).
+  double fx_from_fov = 0, fy_from_fov = 0;
+  int recorded_frames = -1;  ///< a recording's depth frames; -1: not a recording
 };
 
 /// Every device OpenNI2's drivers find now, each opened briefly for its serial and modes.
 /// @pre no RigCapture holds a device this process would open again (it is opened here).
 /// @throws std::runtime_error when OpenNI2 cannot initialise.
 std::vector<DeviceListing> ListDevices();
+
+/// One device opened by @p uri (a camera's URI, or an .oni recording, checked first as
+/// capture checks it) with its depth stream's mode, fields of view and, for a recording,
+/// its frame count. Never throws for a device that cannot be opened: `error` says why.
+/// @pre no RigCapture holds the device.
+/// @throws std::runtime_error when OpenNI2 cannot initialise.
+DeviceListing DescribeUri(const std::string& uri);
+
+/// Copies a depth image of OpenNI2 pixel format @p oni_pixel_format (rows @p stride_px
+/// apart) into @p depth_mm (width * height, row major), in millimetres: depth in 1 mm as it
+/// is, depth in 100 um rounded to the nearest millimetre. Returns false, writing nothing, for
+/// any other format (disparity shifts, colour), which cannot be read as depth.
+bool CopyDepthAsMillimetres(int oni_pixel_format, const std::uint16_t* src, int stride_px,
+                            int width, int height, std::uint16_t* depth_mm);
+
+/// "depth 1 mm", "shift 9.2", ... for an OpenNI2 pixel format; "format N" for one unknown.
+std::string DescribePixelFormat(int oni_pixel_format);
 
 /// CLOCK_MONOTONIC in nanoseconds.
 std::int64_t MonotonicNs();

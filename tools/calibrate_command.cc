@@ -55,6 +55,49 @@ void WritePose(YAML::Emitter& out, const Eigen::Isometry3d& X) {
   out << YAML::EndMap;
 }
 
+// Prints what @p d's depth stream gives and, against @p cam (when given), what differs from
+// its calibration; without one, a rig entry to start from. Returns false when capture could
+// not use it as calibrated.
+bool PrintOpened(const perception::DeviceListing& d, const perception::CameraCalibration* cam) {
+  std::printf("  vendor %s, name %s, serial %s\n", d.vendor.c_str(), d.name.c_str(),
+              d.serial.empty() ? "?" : d.serial.c_str());
+  std::printf("  depth stream %s%s", d.depth_mode.c_str(),
+              d.depth_readable ? "" : " (not depth in 1 mm or 100 um: capture cannot read it)");
+  if (d.recorded_frames >= 0) std::printf(", %d frames recorded", d.recorded_frames);
+  std::printf("\n");
+  if (d.fx_from_fov > 0 && d.fy_from_fov > 0)
+    std::printf("  field of view implies fx %.1f, fy %.1f px\n", d.fx_from_fov, d.fy_from_fov);
+  bool ok = d.depth_readable;
+  if (cam == nullptr) {
+    const double fx = d.fx_from_fov > 0 ? d.fx_from_fov : 0;
+    std::printf("  rig entry to start from (X_RigCam from `vbutcher calibrate`; intrinsics %s):\n",
+                fx > 0 ? "from the field of view" : "unknown: the stream reports no field of view");
+    // A recording keeps no serial: its file's name stands in (serials must be unique).
+    const std::string serial =
+        d.serial.empty() ? std::filesystem::path(d.uri).stem().string() : d.serial;
+    std::printf("  - name: cam\n    serial: %s\n    uri: %s\n    resolution: [%d, %d]\n",
+                serial.c_str(), d.uri.c_str(), d.depth_width,
+                d.depth_height);
+    std::printf("    intrinsics: {fx: %.2f, fy: %.2f, cx: %.1f, cy: %.1f}\n", fx,
+                d.fy_from_fov > 0 ? d.fy_from_fov : fx, 0.5 * (d.depth_width - 1),
+                0.5 * (d.depth_height - 1));
+    return ok;
+  }
+  const perception::Intrinsics& k = cam->intrinsics;
+  if (d.depth_width != k.width || d.depth_height != k.height) {
+    std::printf("  MISMATCH: the calibration says %dx%d; capture refuses every frame\n", k.width,
+                k.height);
+    ok = false;
+  }
+  // A focal length far from the field of view's is a calibration for another camera or mode.
+  const double kFocalTolerance = 0.05;
+  if (d.fx_from_fov > 0 && std::abs(k.fx / d.fx_from_fov - 1.0) > kFocalTolerance)
+    std::printf("  note: calibrated fx %.1f differs from the field of view's by %.0f %%\n", k.fx,
+                100.0 * std::abs(k.fx / d.fx_from_fov - 1.0));
+  if (ok) std::printf("  matches the calibration's resolution; capture can read it\n");
+  return ok;
+}
+
 }  // namespace
 
 int RunCameras(const CamerasCommandOptions& options) {
@@ -83,10 +126,33 @@ int RunCameras(const CamerasCommandOptions& options) {
   int missing = 0;
   for (std::size_t c = 0; c < rig.cameras.size(); ++c) {
     if (matched[c]) continue;
-    ++missing;
-    std::printf("\nrig entry %s (serial %s%s%s): no device\n", rig.cameras[c].name.c_str(),
-                rig.cameras[c].serial.c_str(), rig.cameras[c].uri.empty() ? "" : ", URI ",
-                rig.cameras[c].uri.c_str());
+    const perception::CameraCalibration& cam = rig.cameras[c];
+    std::printf("\nrig entry %s (serial %s%s%s): ", cam.name.c_str(), cam.serial.c_str(),
+                cam.uri.empty() ? "" : ", URI ", cam.uri.c_str());
+    if (cam.uri.empty()) {
+      std::printf("no device\n");
+      ++missing;
+      continue;
+    }
+    // Recordings are not listed by the drivers: opened by their URI.
+    const perception::DeviceListing d = perception::DescribeUri(cam.uri);
+    if (!d.error.empty()) {
+      std::printf("no device: %s\n", d.error.c_str());
+      ++missing;
+      continue;
+    }
+    std::printf("%s\n", d.recorded_frames >= 0 ? "a recording" : "opened by its URI");
+    missing += PrintOpened(d, &cam) ? 0 : 1;
+  }
+  for (const std::string& uri : options.uris) {
+    std::printf("\n%s\n", uri.c_str());
+    const perception::DeviceListing d = perception::DescribeUri(uri);
+    if (!d.error.empty()) {
+      std::printf("  %s\n", d.error.c_str());
+      ++missing;
+      continue;
+    }
+    missing += PrintOpened(d, nullptr) ? 0 : 1;
   }
   return missing == 0 ? 0 : 3;
 }

@@ -9,10 +9,14 @@ namespace vb::tools {
 struct CamerasCommandOptions {
   std::filesystem::path rig_path;    ///< optional: which rig entry each device is
   std::filesystem::path scene_path;  ///< optional: the virtual rig's scene
+  std::vector<std::string> uris;     ///< also opened by URI (recordings, which are not listed)
 };
 /// `vbutcher cameras`: every OpenNI2 device (URI, vendor, name, serial, USB ids, depth and
-/// colour modes) and the rig entry it matches (by serial or URI); rig entries with no device.
-/// @return 0, or 3 when a rig is given and one of its cameras has no device.
+/// colour modes) and the rig entry it matches (by serial or URI). A rig entry no listed
+/// device matches is opened by its URI (an .oni recording) and checked against its
+/// calibration: resolution, a depth format capture reads, focal lengths against the field of
+/// view. Each of @p uris is opened the same way and printed with a rig entry to start from.
+/// @return 0, or 3 when a rig entry or a URI cannot be opened or does not match.
 int RunCameras(const CamerasCommandOptions& options);
 
 struct TargetCommandOptions {

@@ -310,6 +310,9 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   cameras_cmd->add_option("--scene", cameras.scene_path, "Virtual scene (for the virtual rig)")
       ->check(CLI::ExistingFile);
+  cameras_cmd->add_option("--uri", cameras.uris,
+                          "Also open this URI (an .oni recording): its depth mode, frames and "
+                          "a rig entry with intrinsics from its field of view");
 
   CLI::App* calibrate_cmd = app.add_subcommand(
       "calibrate", "Calibrate the rig and the saw from depth alone (docs/operations.md, bring-up)");

@@ -119,13 +119,21 @@ class SceneWatcher {
   FileStamp stamp_;
 };
 
-OniVideoMode DepthMode(const Intrinsics& k, int fps) {
+// The calibrated resolution at the scene's rate, depth in @p format (1 mm or 100 um, as a
+// PrimeSense offers).
+OniVideoMode DepthMode(const Intrinsics& k, int fps,
+                       OniPixelFormat format = ONI_PIXEL_FORMAT_DEPTH_1_MM) {
   OniVideoMode mode;
-  mode.pixelFormat = ONI_PIXEL_FORMAT_DEPTH_1_MM;
+  mode.pixelFormat = format;
   mode.resolutionX = k.width;
   mode.resolutionY = k.height;
   mode.fps = fps;
   return mode;
+}
+
+// The largest depth value a stream in @p mode gives, in its units (as PS1080 reports it).
+int MaxValue(const OniVideoMode& mode) {
+  return mode.pixelFormat == ONI_PIXEL_FORMAT_DEPTH_100_UM ? 65534 : 10000;
 }
 
 template <typename T>
@@ -179,8 +187,8 @@ class DepthStream : public oni::driver::StreamBase {
         return Put(static_cast<float>(2 * std::atan(0.5 * k.width / k.fx)), data, size);
       case ONI_STREAM_PROPERTY_VERTICAL_FOV:
         return Put(static_cast<float>(2 * std::atan(0.5 * k.height / k.fy)), data, size);
-      case ONI_STREAM_PROPERTY_MAX_VALUE:
-        return Put(10000, data, size);
+      case ONI_STREAM_PROPERTY_MAX_VALUE:  // a recording's codec keeps values up to this
+        return Put(MaxValue(mode_), data, size);
       case ONI_STREAM_PROPERTY_MIN_VALUE:
         return Put(0, data, size);
       case ONI_STREAM_PROPERTY_STRIDE:
@@ -195,10 +203,15 @@ class DepthStream : public oni::driver::StreamBase {
       if (size != sizeof(OniVideoMode)) return ONI_STATUS_BAD_PARAMETER;
       OniVideoMode wanted;
       std::memcpy(&wanted, data, sizeof(wanted));
-      // One mode: the calibrated resolution at the scene's rate, depth in millimetres.
+      // Two modes: the calibrated resolution at the scene's rate, depth in 1 mm or 100 um;
+      // changed only while stopped (the frame thread reads the mode).
       if (wanted.resolutionX != mode_.resolutionX || wanted.resolutionY != mode_.resolutionY ||
-          wanted.pixelFormat != mode_.pixelFormat || wanted.fps != mode_.fps)
+          wanted.fps != mode_.fps ||
+          (wanted.pixelFormat != ONI_PIXEL_FORMAT_DEPTH_1_MM &&
+           wanted.pixelFormat != ONI_PIXEL_FORMAT_DEPTH_100_UM))
         return ONI_STATUS_NOT_SUPPORTED;
+      if (wanted.pixelFormat != mode_.pixelFormat && running_) return ONI_STATUS_OUT_OF_FLOW;
+      mode_.pixelFormat = wanted.pixelFormat;
       return ONI_STATUS_OK;
     }
     if (id == ONI_STREAM_PROPERTY_CROPPING) {
@@ -246,6 +259,10 @@ class DepthStream : public oni::driver::StreamBase {
           noise = std::make_unique<DepthNoise>(scene.noise, seed * 7919 + camera_);
         }
         noise->Apply(renderer.depth_m(), renderer.cos_incidence(), k.width, k.height, &image);
+        if (mode_.pixelFormat == ONI_PIXEL_FORMAT_DEPTH_100_UM) {
+          for (std::uint16_t& z : image)
+            z = static_cast<std::uint16_t>(std::min<int>(MaxValue(mode_), z * 10));
+        }
       }
       OniFrame* frame = getServices().acquireFrame();
       if (frame == nullptr) continue;
@@ -284,10 +301,11 @@ class Device : public oni::driver::DeviceBase {
     const auto snapshot = watcher_->Current();
     const CameraCalibration& cam = snapshot->scene.rig.cameras[static_cast<std::size_t>(camera)];
     serial_ = cam.serial;
-    mode_ = DepthMode(cam.intrinsics, snapshot->scene.fps);
+    modes_[0] = DepthMode(cam.intrinsics, snapshot->scene.fps);
+    modes_[1] = DepthMode(cam.intrinsics, snapshot->scene.fps, ONI_PIXEL_FORMAT_DEPTH_100_UM);
     sensor_.sensorType = ONI_SENSOR_DEPTH;
-    sensor_.numSupportedVideoModes = 1;
-    sensor_.pSupportedVideoModes = &mode_;
+    sensor_.numSupportedVideoModes = 2;
+    sensor_.pSupportedVideoModes = modes_;
   }
 
   OniStatus getSensorInfoList(OniSensorInfo** infos, int* count) override {
@@ -327,7 +345,7 @@ class Device : public oni::driver::DeviceBase {
   SceneWatcher* watcher_;
   int camera_;
   std::string serial_;
-  OniVideoMode mode_;
+  OniVideoMode modes_[2];
   OniSensorInfo sensor_;
 };
 

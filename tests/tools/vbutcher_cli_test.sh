@@ -219,6 +219,16 @@ check "record writes .oni files and a playback rig" 0 "playback calibration" \
   "$vbutcher" record --rig "$work/rig/rig.yaml" --scene "$work/rig/scene.yaml" --out "$work/rec" --seconds 0.5
 check "capture plays the recording back" 0 "wrote" \
   "$vbutcher" capture --rig "$work/rec/rig.yaml" --out "$work/replayed.ply"
+check "cameras opens each recording of a playback rig" 0 "a recording" \
+  "$vbutcher" cameras --rig "$work/rec/rig.yaml"
+grep -q "depth stream 640x480 30 fps depth 1 mm, [0-9]* frames recorded" <<<"$last_out" ||
+  { echo "FAIL: cameras gave no recorded mode and frames"; failures=$((failures + 1)); }
+sed 's/resolution: \[640, 480\]/resolution: [320, 240]/' "$work/rec/rig.yaml" >"$work/rec/small.yaml"
+check "cameras says a recording's resolution differs from its calibration" 3 "MISMATCH: the calibration says 320x240" \
+  "$vbutcher" cameras --rig "$work/rec/small.yaml"
+check "cameras --uri gives a recording's rig entry with intrinsics from its field of view" 0 \
+  "intrinsics: {fx: 570.30, fy: 570.30, cx: 319.5, cy: 239.5}" \
+  "$vbutcher" cameras --uri "$(ls "$work"/rec/*.oni | head -1)"
 sed 's/fx: [0-9.]*/fx: -1/' "$work/rig/rig.yaml" >"$work/badrig.yaml"
 check "capture refuses a bad calibration, naming file and key" 2 "badrig.yaml:.*intrinsics.fx" \
   "$vbutcher" capture --rig "$work/badrig.yaml" --out "$work/x.ply"
