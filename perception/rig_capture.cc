@@ -86,23 +86,24 @@ std::string DescribePixelFormat(int oni_pixel_format) {
 }
 
 bool CopyDepthAsMillimetres(int oni_pixel_format, const std::uint16_t* src, int stride_px,
-                            int width, int height, std::uint16_t* depth_mm) {
-  if (oni_pixel_format == openni::PIXEL_FORMAT_DEPTH_1_MM) {
-    for (int v = 0; v < height; ++v)
-      std::memcpy(depth_mm + static_cast<std::ptrdiff_t>(v) * width,
-                  src + static_cast<std::ptrdiff_t>(v) * stride_px,
-                  static_cast<std::size_t>(width) * 2);
-    return true;
-  }
-  if (oni_pixel_format == openni::PIXEL_FORMAT_DEPTH_100_UM) {
-    for (int v = 0; v < height; ++v) {
-      const std::uint16_t* row = src + static_cast<std::ptrdiff_t>(v) * stride_px;
-      std::uint16_t* out = depth_mm + static_cast<std::ptrdiff_t>(v) * width;
-      for (int u = 0; u < width; ++u) out[u] = static_cast<std::uint16_t>((row[u] + 5u) / 10u);
+                            int width, int height, bool mirrored, std::uint16_t* depth_mm) {
+  const bool tenths = oni_pixel_format == openni::PIXEL_FORMAT_DEPTH_100_UM;
+  if (!tenths && oni_pixel_format != openni::PIXEL_FORMAT_DEPTH_1_MM) return false;
+  for (int v = 0; v < height; ++v) {
+    const std::uint16_t* row = src + static_cast<std::ptrdiff_t>(v) * stride_px;
+    std::uint16_t* out = depth_mm + static_cast<std::ptrdiff_t>(v) * width;
+    if (!tenths && !mirrored) {
+      std::memcpy(out, row, static_cast<std::size_t>(width) * 2);
+    } else if (!tenths) {
+      std::reverse_copy(row, row + width, out);
+    } else {
+      for (int u = 0; u < width; ++u) {
+        const std::uint16_t z = row[mirrored ? width - 1 - u : u];
+        out[u] = static_cast<std::uint16_t>((z + 5u) / 10u);
+      }
     }
-    return true;
   }
-  return false;
+  return true;
 }
 
 std::vector<DeviceListing> ListDevices() {
@@ -174,6 +175,7 @@ DeviceListing DescribeUri(const std::string& uri) {
     d.depth_height = mode.getResolutionY();
     d.depth_readable = mode.getPixelFormat() == openni::PIXEL_FORMAT_DEPTH_1_MM ||
                        mode.getPixelFormat() == openni::PIXEL_FORMAT_DEPTH_100_UM;
+    d.mirrored = depth.getMirroringEnabled();
     // A pinhole of that width over that angle; a field of view outside (0, pi) is not one.
     const float h = depth.getHorizontalFieldOfView(), v = depth.getVerticalFieldOfView();
     if (h > 0.0f && h < 3.14f) d.fx_from_fov = 0.5 * d.depth_width / std::tan(0.5 * h);
@@ -245,6 +247,7 @@ struct RigCapture::Camera {
   std::string refused;
   // Why the depth stream's mode was refused (status.last_error points at it while it is).
   std::string mode_error;
+  bool mirrored = false;  // the stream's rows come reversed
 };
 
 RigCapture::RigCapture(const RigCalibration& rig, const CaptureOptions& options)
@@ -354,6 +357,10 @@ void RigCapture::Open(Camera* cam) {
       return;
     }
   }
+  // The calibration is of the lens's view: a camera left mirroring (viewers turn it on) is
+  // asked to stop; a recording made mirrored keeps it, and its rows are turned back in Read.
+  if (cam->depth.getMirroringEnabled()) (void)cam->depth.setMirroringEnabled(false);
+  cam->mirrored = cam->depth.getMirroringEnabled();
   // A playback device, or a camera that refused the mode asked, may give depth in 100 um
   // (read, converted) or disparity shifts (refused: they need the device's own tables).
   const int format = cam->depth.getVideoMode().getPixelFormat();
@@ -463,7 +470,8 @@ void RigCapture::Read(Camera* cam) {
   // Each frame's own format: a recording keeps the one it was made in.
   if (!CopyDepthAsMillimetres(ref.getVideoMode().getPixelFormat(),
                               static_cast<const std::uint16_t*>(ref.getData()),
-                              ref.getStrideInBytes() / 2, f.width, f.height, f.depth_mm.data())) {
+                              ref.getStrideInBytes() / 2, f.width, f.height, cam->mirrored,
+                              f.depth_mm.data())) {
     cam->status.last_error = "a frame's pixel format is not depth in 1 mm or 100 um";
     return;
   }

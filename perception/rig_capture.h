@@ -131,6 +131,7 @@ struct DeviceListing {
   std::string depth_mode;      ///< e.g. "640x480 30 fps depth 100 um"; empty: no depth stream
   int depth_width = 0, depth_height = 0;
   bool depth_readable = false;  ///< depth in 1 mm or 100 um (capture reads it)
+  bool mirrored = false;        ///< rows reversed (capture turns them back)
   /// Focal lengths in pixels implied by the stream's fields of view (0: not reported).
   double fx_from_fov = 0, fy_from_fov = 0;
   int recorded_frames = -1;  ///< a recording's depth frames; -1: not a recording
@@ -150,10 +151,12 @@ DeviceListing DescribeUri(const std::string& uri);
 
 /// Copies a depth image of OpenNI2 pixel format @p oni_pixel_format (rows @p stride_px
 /// apart) into @p depth_mm (width * height, row major), in millimetres: depth in 1 mm as it
-/// is, depth in 100 um rounded to the nearest millimetre. Returns false, writing nothing, for
-/// any other format (disparity shifts, colour), which cannot be read as depth.
+/// is, depth in 100 um rounded to the nearest millimetre; each row reversed when
+/// @p mirrored (the image a mirroring camera gives, put back as its lens sees it). Returns
+/// false, writing nothing, for any other format (disparity shifts, colour), which cannot be
+/// read as depth.
 bool CopyDepthAsMillimetres(int oni_pixel_format, const std::uint16_t* src, int stride_px,
-                            int width, int height, std::uint16_t* depth_mm);
+                            int width, int height, bool mirrored, std::uint16_t* depth_mm);
 
 /// "depth 1 mm", "shift 9.2", ... for an OpenNI2 pixel format; "format N" for one unknown.
 std::string DescribePixelFormat(int oni_pixel_format);

@@ -64,6 +64,7 @@ bool PrintOpened(const perception::DeviceListing& d, const perception::CameraCal
   std::printf("  depth stream %s%s", d.depth_mode.c_str(),
               d.depth_readable ? "" : " (not depth in 1 mm or 100 um: capture cannot read it)");
   if (d.recorded_frames >= 0) std::printf(", %d frames recorded", d.recorded_frames);
+  if (d.mirrored) std::printf(", mirrored (capture turns the rows back)");
   std::printf("\n");
   if (d.fx_from_fov > 0 && d.fy_from_fov > 0)
     std::printf("  field of view implies fx %.1f, fy %.1f px\n", d.fx_from_fov, d.fy_from_fov);

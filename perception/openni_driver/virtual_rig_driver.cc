@@ -10,6 +10,7 @@
 #include <Driver/OniDriverAPI.h>
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
@@ -182,7 +183,7 @@ class DepthStream : public oni::driver::StreamBase {
         return Put(cropping, data, size);
       }
       case ONI_STREAM_PROPERTY_MIRRORING:
-        return Put<OniBool>(FALSE, data, size);
+        return Put<OniBool>(mirrored_ ? TRUE : FALSE, data, size);
       case ONI_STREAM_PROPERTY_HORIZONTAL_FOV:
         return Put(static_cast<float>(2 * std::atan(0.5 * k.width / k.fx)), data, size);
       case ONI_STREAM_PROPERTY_VERTICAL_FOV:
@@ -220,11 +221,12 @@ class DepthStream : public oni::driver::StreamBase {
       std::memcpy(&cropping, data, sizeof(cropping));
       return cropping.enabled ? ONI_STATUS_NOT_SUPPORTED : ONI_STATUS_OK;
     }
-    if (id == ONI_STREAM_PROPERTY_MIRRORING) {
+    if (id == ONI_STREAM_PROPERTY_MIRRORING) {  // as a PrimeSense: each row reversed
       if (size != sizeof(OniBool)) return ONI_STATUS_BAD_PARAMETER;
       OniBool on;
       std::memcpy(&on, data, sizeof(on));
-      return on ? ONI_STATUS_NOT_SUPPORTED : ONI_STATUS_OK;
+      mirrored_ = on != FALSE;
+      return ONI_STATUS_OK;
     }
     return ONI_STATUS_NOT_SUPPORTED;
   }
@@ -279,7 +281,15 @@ class DepthStream : public oni::driver::StreamBase {
       frame->cropOriginX = frame->cropOriginY = 0;
       frame->stride = k.width * 2;
       const int bytes = std::min(frame->dataSize, static_cast<int>(image.size() * 2));
-      std::memcpy(frame->data, image.data(), static_cast<std::size_t>(bytes));
+      if (mirrored_ && bytes == static_cast<int>(image.size() * 2)) {
+        auto* out = static_cast<std::uint16_t*>(frame->data);
+        for (int v = 0; v < k.height; ++v)
+          std::reverse_copy(&image[static_cast<std::size_t>(v) * k.width],
+                            &image[static_cast<std::size_t>(v + 1) * k.width],
+                            out + static_cast<std::ptrdiff_t>(v) * k.width);
+      } else {
+        std::memcpy(frame->data, image.data(), static_cast<std::size_t>(bytes));
+      }
       frame->dataSize = bytes;
       raiseNewFrame(frame);
       getServices().releaseFrame(frame);
@@ -291,6 +301,7 @@ class DepthStream : public oni::driver::StreamBase {
   std::uint64_t seed_;
   CameraCalibration calibration_;
   OniVideoMode mode_;
+  std::atomic<bool> mirrored_{false};
   std::atomic<bool> running_{false};
   std::thread thread_;
 };

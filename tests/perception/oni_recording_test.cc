@@ -21,7 +21,94 @@
 namespace vb::perception {
 namespace {
 
-using OniRecordingTest = test::VirtualRigTest;
+// Records the virtual camera @p serial for @p seconds with its depth stream in @p format,
+// mirrored or not, through OpenNI2's own recorder, as a camera another program (a viewer)
+// left in that mode would be. Returns an empty string, or what failed.
+// @pre OpenNI2 is not in use in this process.
+std::string RecordInFormat(const std::string& serial, openni::PixelFormat format, bool mirrored,
+                           const std::filesystem::path& file, double seconds) {
+  if (openni::OpenNI::initialize() != openni::STATUS_OK) return "initialise";
+  std::string failed;
+  {
+    openni::Device device;
+    openni::VideoStream depth;
+    openni::Recorder recorder;
+    if (device.open(("vbrig://" + serial).c_str()) != openni::STATUS_OK) {
+      failed = "open";
+    } else if (depth.create(device, openni::SENSOR_DEPTH) != openni::STATUS_OK) {
+      failed = "create";
+    } else {
+      openni::VideoMode mode = depth.getVideoMode();
+      mode.setPixelFormat(format);
+      if (depth.setVideoMode(mode) != openni::STATUS_OK ||
+          depth.setMirroringEnabled(mirrored) != openni::STATUS_OK ||
+          depth.start() != openni::STATUS_OK ||
+          recorder.create(file.c_str()) != openni::STATUS_OK ||
+          recorder.attach(depth) != openni::STATUS_OK || recorder.start() != openni::STATUS_OK)
+        failed = std::string("record: ") + openni::OpenNI::getExtendedError();
+      std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+      recorder.stop();
+      recorder.destroy();
+      depth.stop();
+      depth.destroy();
+      device.close();
+    }
+  }
+  openni::OpenNI::shutdown();
+  return failed;
+}
+
+class OniRecordingTest : public test::VirtualRigTest {
+ protected:
+  // Records camera 0 of a one-camera noise-free rig in @p format, @p mirrored or not, and plays
+  // the recording through capture: every frame must be the render in millimetres as the lens
+  // sees it.
+  void ExpectPlaysAsTheLensSees(openni::PixelFormat format, bool mirrored) {
+    perception::VirtualRigOptions options;
+    options.ring.num_cameras = 1;
+    options.noise = false;
+    WriteRig(options);
+    const std::filesystem::path file = dir_ / "recorded.oni";
+    const RigCalibration& rig_calibration = scene_.rig;
+    ASSERT_EQ(RecordInFormat(rig_calibration.cameras[0].serial, format, mirrored, file, 1.0), "");
+    const DeviceListing listed = DescribeUri(file.string());
+    EXPECT_EQ(listed.error, "");
+    EXPECT_THAT(listed.depth_mode, ::testing::HasSubstr(
+                                       format == openni::PIXEL_FORMAT_DEPTH_100_UM ? "depth 100 um"
+                                                                                   : "depth 1 mm"));
+    EXPECT_TRUE(listed.depth_readable);
+    EXPECT_EQ(listed.mirrored, mirrored);
+    EXPECT_GE(listed.recorded_frames, 10);
+    EXPECT_NEAR(listed.fx_from_fov, rig_calibration.cameras[0].intrinsics.fx, 0.01);
+
+    // Capture asks for millimetres, not mirrored; the player keeps what was recorded.
+    RigCalibration playback = rig_calibration;
+    playback.cameras[0].uri = file.string();
+    const CameraCalibration& cam = playback.cameras[0];
+    DepthRenderer renderer(cam.intrinsics, cam.X_RigCam);
+    renderer.Render(files_.truth.mesh, scene_.floor_z_m);
+    DepthNoiseOptions off;
+    off.enabled = false;
+    std::vector<std::uint16_t> expected(renderer.depth_m().size());
+    DepthNoise(off, 1).Apply(renderer.depth_m(), renderer.cos_incidence(), cam.intrinsics.width,
+                             cam.intrinsics.height, &expected);
+    CaptureOptions capture;
+    capture.recovery_period_ms = 60000;  // a static noise-free scene repeats itself exactly
+    RigCapture dut(playback, capture);
+    int exact = 0, played = 0;
+    std::uint64_t seen = 0;
+    const std::int64_t end = MonotonicNs() + 1500000000;
+    while (MonotonicNs() < end) {
+      dut.Poll();
+      if (dut.status(0).frames == seen) continue;
+      seen = dut.status(0).frames;
+      ++played;
+      exact += dut.frame(0).depth_mm == expected;
+    }
+    EXPECT_GE(played, 10);
+    EXPECT_EQ(exact, played);
+  }
+};
 
 TEST_F(OniRecordingTest, RecordingPlaysBackThroughOpenNi2sFileDriver) {
   perception::VirtualRigOptions options;
@@ -85,83 +172,12 @@ TEST_F(OniRecordingTest, RecordingPlaysBackThroughOpenNi2sFileDriver) {
   EXPECT_GE(oni.nodes[0].data_records, 10u);
 }
 
-// Records the virtual camera @p serial for @p seconds with its depth stream in @p format,
-// through OpenNI2's own recorder, as a camera another program left in that mode would be.
-// Returns an empty string, or what failed. @pre OpenNI2 is not in use in this process.
-std::string RecordInFormat(const std::string& serial, openni::PixelFormat format,
-                           const std::filesystem::path& file, double seconds) {
-  if (openni::OpenNI::initialize() != openni::STATUS_OK) return "initialise";
-  std::string failed;
-  {
-    openni::Device device;
-    openni::VideoStream depth;
-    openni::Recorder recorder;
-    if (device.open(("vbrig://" + serial).c_str()) != openni::STATUS_OK) {
-      failed = "open";
-    } else if (depth.create(device, openni::SENSOR_DEPTH) != openni::STATUS_OK) {
-      failed = "create";
-    } else {
-      openni::VideoMode mode = depth.getVideoMode();
-      mode.setPixelFormat(format);
-      if (depth.setVideoMode(mode) != openni::STATUS_OK || depth.start() != openni::STATUS_OK ||
-          recorder.create(file.c_str()) != openni::STATUS_OK ||
-          recorder.attach(depth) != openni::STATUS_OK || recorder.start() != openni::STATUS_OK)
-        failed = std::string("record: ") + openni::OpenNI::getExtendedError();
-      std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
-      recorder.stop();
-      recorder.destroy();
-      depth.stop();
-      depth.destroy();
-      device.close();
-    }
-  }
-  openni::OpenNI::shutdown();
-  return failed;
+TEST_F(OniRecordingTest, ARecordingInTenthsOfAMillimetrePlaysInMillimetres) {
+  ExpectPlaysAsTheLensSees(openni::PIXEL_FORMAT_DEPTH_100_UM, false);
 }
 
-TEST_F(OniRecordingTest, ARecordingInTenthsOfAMillimetrePlaysInMillimetres) {
-  perception::VirtualRigOptions options;
-  options.ring.num_cameras = 1;
-  options.noise = false;
-  WriteRig(options);
-  const std::filesystem::path file = dir_ / "tenths.oni";
-  ASSERT_EQ(RecordInFormat(scene_.rig.cameras[0].serial, openni::PIXEL_FORMAT_DEPTH_100_UM, file,
-                           1.0),
-            "");
-  const DeviceListing listed = DescribeUri(file.string());
-  EXPECT_EQ(listed.error, "");
-  EXPECT_THAT(listed.depth_mode, ::testing::HasSubstr("depth 100 um"));
-  EXPECT_TRUE(listed.depth_readable);
-  EXPECT_GE(listed.recorded_frames, 10);
-  EXPECT_NEAR(listed.fx_from_fov, scene_.rig.cameras[0].intrinsics.fx, 0.01);
-
-  // Capture asks for millimetres, the player keeps the recorded mode; every frame must come
-  // out as the noise-free render in millimetres.
-  RigCalibration playback = scene_.rig;
-  playback.cameras[0].uri = file.string();
-  const CameraCalibration& cam = playback.cameras[0];
-  DepthRenderer renderer(cam.intrinsics, cam.X_RigCam);
-  renderer.Render(files_.truth.mesh, scene_.floor_z_m);
-  DepthNoiseOptions off;
-  off.enabled = false;
-  std::vector<std::uint16_t> expected(renderer.depth_m().size());
-  DepthNoise(off, 1).Apply(renderer.depth_m(), renderer.cos_incidence(), cam.intrinsics.width,
-                           cam.intrinsics.height, &expected);
-  CaptureOptions capture;
-  capture.recovery_period_ms = 60000;  // a static noise-free scene repeats itself exactly
-  RigCapture dut(playback, capture);
-  int exact = 0, played = 0;
-  std::uint64_t seen = 0;
-  const std::int64_t end = MonotonicNs() + 1500000000;
-  while (MonotonicNs() < end) {
-    dut.Poll();
-    if (dut.status(0).frames == seen) continue;
-    seen = dut.status(0).frames;
-    ++played;
-    exact += dut.frame(0).depth_mm == expected;
-  }
-  EXPECT_GE(played, 10);
-  EXPECT_EQ(exact, played);
+TEST_F(OniRecordingTest, AMirroredRecordingPlaysAsTheLensSees) {
+  ExpectPlaysAsTheLensSees(openni::PIXEL_FORMAT_DEPTH_1_MM, true);
 }
 
 TEST(DepthUnitsTest, TenthsAreRoundedToMillimetresAndShiftsAreRefused) {
@@ -169,14 +185,20 @@ TEST(DepthUnitsTest, TenthsAreRoundedToMillimetresAndShiftsAreRefused) {
   const std::vector<std::uint16_t> tenths = {0, 14, 15, 9, 12345, 65535, 10, 7};
   std::vector<std::uint16_t> mm(6, 1);
   ASSERT_TRUE(CopyDepthAsMillimetres(openni::PIXEL_FORMAT_DEPTH_100_UM, tenths.data(), 4, 3, 2,
-                                     mm.data()));
+                                     false, mm.data()));
   EXPECT_EQ(mm, (std::vector<std::uint16_t>{0, 1, 2, 1235, 6554, 1}));
+  ASSERT_TRUE(CopyDepthAsMillimetres(openni::PIXEL_FORMAT_DEPTH_100_UM, tenths.data(), 4, 3, 2,
+                                     true, mm.data()));
+  EXPECT_EQ(mm, (std::vector<std::uint16_t>{2, 1, 0, 1, 6554, 1235}));
   ASSERT_TRUE(CopyDepthAsMillimetres(openni::PIXEL_FORMAT_DEPTH_1_MM, tenths.data(), 4, 3, 2,
-                                     mm.data()));
+                                     true, mm.data()));
+  EXPECT_EQ(mm, (std::vector<std::uint16_t>{15, 14, 0, 10, 65535, 12345}));
+  ASSERT_TRUE(CopyDepthAsMillimetres(openni::PIXEL_FORMAT_DEPTH_1_MM, tenths.data(), 4, 3, 2,
+                                     false, mm.data()));
   EXPECT_EQ(mm, (std::vector<std::uint16_t>{0, 14, 15, 12345, 65535, 10}));
   const std::vector<std::uint16_t> before = mm;
   EXPECT_FALSE(CopyDepthAsMillimetres(openni::PIXEL_FORMAT_SHIFT_9_2, tenths.data(), 4, 3, 2,
-                                      mm.data()));
+                                      false, mm.data()));
   EXPECT_EQ(mm, before);
   EXPECT_EQ(DescribePixelFormat(openni::PIXEL_FORMAT_SHIFT_9_3), "shift 9.3");
   EXPECT_EQ(DescribePixelFormat(12345), "format 12345");
