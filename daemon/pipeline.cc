@@ -468,7 +468,11 @@ void Pipeline::CaptureLoop() {
     earlier_depths = depths;  // same size: no allocation
     if (cloud.size >= config_.job.presence_min_points) {
       present_sets = still ? present_sets + 1 : 0;
-      if (stale_camera >= 0 && capture_fault.empty()) {
+      // The job is made from this frame set: a camera unhealthy in it refuses the job, one
+      // that was unhealthy in an earlier set of the settling and is fresh now (cameras still
+      // starting when the service starts beside a hanging carcass) does not.
+      capture_fault.clear();  // keeps its capacity: no allocation
+      if (stale_camera >= 0) {
         capture_fault = "camera ";
         capture_fault += capture.calibration(stale_camera).name;
         capture_fault += " was ";
