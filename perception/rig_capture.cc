@@ -67,6 +67,17 @@ std::vector<std::string> Modes(const openni::SensorInfo* info) {
   return out;
 }
 
+// The serial number (when the device reports one) and the depth and colour modes of an open
+// device.
+void ReadSerialAndModes(openni::Device& device, DeviceListing* d) {
+  char serial[64] = {};
+  int size = sizeof(serial);
+  if (device.getProperty(ONI_DEVICE_PROPERTY_SERIAL_NUMBER, serial, &size) == openni::STATUS_OK)
+    d->serial = serial;
+  d->depth_modes = Modes(device.getSensorInfo(openni::SENSOR_DEPTH));
+  d->colour_modes = Modes(device.getSensorInfo(openni::SENSOR_COLOR));
+}
+
 }  // namespace
 
 std::string DescribePixelFormat(int oni_pixel_format) {
@@ -123,12 +134,7 @@ std::vector<DeviceListing> ListDevices() {
     if (device.open(info.getUri()) != openni::STATUS_OK) {
       d.error = std::string("cannot be opened: ") + openni::OpenNI::getExtendedError();
     } else {
-      char serial[64] = {};
-      int size = sizeof(serial);
-      if (device.getProperty(ONI_DEVICE_PROPERTY_SERIAL_NUMBER, serial, &size) == openni::STATUS_OK)
-        d.serial = serial;
-      d.depth_modes = Modes(device.getSensorInfo(openni::SENSOR_DEPTH));
-      d.colour_modes = Modes(device.getSensorInfo(openni::SENSOR_COLOR));
+      ReadSerialAndModes(device, &d);
       device.close();
     }
     out.push_back(std::move(d));
@@ -160,12 +166,7 @@ DeviceListing DescribeUri(const std::string& uri) {
   d.name = info.getName();
   d.usb_vendor_id = info.getUsbVendorId();
   d.usb_product_id = info.getUsbProductId();
-  char serial[64] = {};
-  int size = sizeof(serial);
-  if (device.getProperty(ONI_DEVICE_PROPERTY_SERIAL_NUMBER, serial, &size) == openni::STATUS_OK)
-    d.serial = serial;
-  d.depth_modes = Modes(device.getSensorInfo(openni::SENSOR_DEPTH));
-  d.colour_modes = Modes(device.getSensorInfo(openni::SENSOR_COLOR));
+  ReadSerialAndModes(device, &d);
   openni::VideoStream depth;
   if (device.hasSensor(openni::SENSOR_DEPTH) &&
       depth.create(device, openni::SENSOR_DEPTH) == openni::STATUS_OK) {
