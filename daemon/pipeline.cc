@@ -338,8 +338,8 @@ void Pipeline::CaptureLoop() {
   double largest_change = 0;  // of the carcass that hangs there, for the log
   long taken_readings = 0;
   bool carcass_taken = false;  // this carcass already became a job
-  // The first camera that was not delivering fresh frames in a frame set since the carcass
-  // arrived: the job is refused naming it.
+  // The first camera not delivering fresh frames in the latest frame set while a carcass
+  // settles: a job made from that set is refused naming it.
   std::string capture_fault;
   capture_fault.reserve(160);
   // Each camera's state as last logged: a change is logged (and sent on VB_DIAGNOSTICS) when

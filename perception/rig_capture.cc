@@ -54,6 +54,18 @@ void ReleaseOpenNi() {
 
 namespace {
 
+// Why a depth stream in @p format cannot be read: static text (CameraStatus::last_error).
+const char* UnreadableFormat(int format) {
+  switch (format) {
+    case openni::PIXEL_FORMAT_SHIFT_9_2:
+      return "the depth stream gives disparity (shift 9.2), not depth in 1 mm or 100 um";
+    case openni::PIXEL_FORMAT_SHIFT_9_3:
+      return "the depth stream gives disparity (shift 9.3), not depth in 1 mm or 100 um";
+    default:
+      return "the depth stream's pixel format is not depth in 1 mm or 100 um";
+  }
+}
+
 std::string DescribeMode(const openni::VideoMode& mode) {
   return std::to_string(mode.getResolutionX()) + "x" + std::to_string(mode.getResolutionY()) + " " +
          std::to_string(mode.getFps()) + " fps " + DescribePixelFormat(mode.getPixelFormat());
@@ -246,8 +258,6 @@ struct RigCapture::Camera {
   // Why a recording (.oni) this camera plays was refused, set once before it is first opened
   // (status.last_error points at it): OpenNI2's player trusts the file's sizes.
   std::string refused;
-  // Why the depth stream's mode was refused (status.last_error points at it while it is).
-  std::string mode_error;
   bool mirrored = false;  // the stream's rows come reversed
 };
 
@@ -358,17 +368,17 @@ void RigCapture::Open(Camera* cam) {
       return;
     }
   }
-  // The calibration is of the lens's view: a camera left mirroring (viewers turn it on) is
-  // asked to stop; a recording made mirrored keeps it, and its rows are turned back in Read.
-  if (cam->depth.getMirroringEnabled()) (void)cam->depth.setMirroringEnabled(false);
+  // The calibration is of the lens's view: a camera that mirrors (a driver's default, such as
+  // PS1080.ini's Mirror=1) is asked to stop; a recording made mirrored keeps it (the player
+  // changes no property), and its rows are turned back in Read.
+  if (!cam->device.isFile() && cam->depth.getMirroringEnabled())
+    (void)cam->depth.setMirroringEnabled(false);
   cam->mirrored = cam->depth.getMirroringEnabled();
   // A playback device, or a camera that refused the mode asked, may give depth in 100 um
   // (read, converted) or disparity shifts (refused: they need the device's own tables).
   const int format = cam->depth.getVideoMode().getPixelFormat();
   if (format != openni::PIXEL_FORMAT_DEPTH_1_MM && format != openni::PIXEL_FORMAT_DEPTH_100_UM) {
-    cam->mode_error = "the depth stream gives " + DescribePixelFormat(format) +
-                      ", not depth in 1 mm or 100 um";
-    SetHealth(cam, CameraHealth::kMissing, now, cam->mode_error.c_str());
+    SetHealth(cam, CameraHealth::kMissing, now, UnreadableFormat(format));
     Close(cam);
     return;
   }
@@ -473,7 +483,8 @@ void RigCapture::Read(Camera* cam) {
                               static_cast<const std::uint16_t*>(ref.getData()),
                               ref.getStrideInBytes() / 2, f.width, f.height, cam->mirrored,
                               f.depth_mm.data())) {
-    cam->status.last_error = "a frame's pixel format is not depth in 1 mm or 100 um";
+    SetHealth(cam, CameraHealth::kMissing, now,
+              UnreadableFormat(ref.getVideoMode().getPixelFormat()));
     return;
   }
   CameraStatus& s = cam->status;

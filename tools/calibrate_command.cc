@@ -56,9 +56,10 @@ void WritePose(YAML::Emitter& out, const Eigen::Isometry3d& X) {
 }
 
 // Prints what @p d's depth stream gives and, against @p cam (when given), what differs from
-// its calibration; without one, a rig entry to start from. Returns false when capture could
-// not use it as calibrated.
-bool PrintOpened(const perception::DeviceListing& d, const perception::CameraCalibration* cam) {
+// its calibration; without one, rig entry number @p index to start from. Returns false when
+// capture could not use it as calibrated.
+bool PrintOpened(const perception::DeviceListing& d, const perception::CameraCalibration* cam,
+                 int index = 0) {
   std::printf("  vendor %s, name %s, serial %s\n", d.vendor.c_str(), d.name.c_str(),
               d.serial.empty() ? "?" : d.serial.c_str());
   std::printf("  depth stream %s%s", d.depth_mode.c_str(),
@@ -69,16 +70,27 @@ bool PrintOpened(const perception::DeviceListing& d, const perception::CameraCal
   if (d.fx_from_fov > 0 && d.fy_from_fov > 0)
     std::printf("  field of view implies fx %.1f, fy %.1f px\n", d.fx_from_fov, d.fy_from_fov);
   bool ok = d.depth_readable;
+  if (d.recorded_frames == 0) {
+    std::printf("  NO FRAMES: the recording holds no depth frame it can play\n");
+    ok = false;
+  }
   if (cam == nullptr) {
     const double fx = d.fx_from_fov > 0 ? d.fx_from_fov : 0;
     std::printf("  rig entry to start from (X_RigCam from `vbutcher calibrate`; intrinsics %s):\n",
                 fx > 0 ? "from the field of view" : "unknown: the stream reports no field of view");
-    // A recording keeps no serial: its file's name stands in (serials must be unique).
+    // A recording keeps no serial: its file's name stands in (serials must be unique). The
+    // URI absolute and quoted, whatever folder the service runs in and whatever the path holds.
     const std::string serial =
         d.serial.empty() ? std::filesystem::path(d.uri).stem().string() : d.serial;
-    std::printf("  - name: cam\n    serial: %s\n    uri: %s\n    resolution: [%d, %d]\n",
-                serial.c_str(), d.uri.c_str(), d.depth_width,
-                d.depth_height);
+    std::string uri = d.uri;
+    if (uri.find("://") == std::string::npos) uri = std::filesystem::absolute(uri).string();
+    std::string quoted;
+    for (const char c : uri) {
+      if (c == '"' || c == '\\') quoted += '\\';
+      quoted += c;
+    }
+    std::printf("  - name: cam%d\n    serial: \"%s\"\n    uri: \"%s\"\n    resolution: [%d, %d]\n",
+                index, serial.c_str(), quoted.c_str(), d.depth_width, d.depth_height);
     std::printf("    intrinsics: {fx: %.2f, fy: %.2f, cx: %.1f, cy: %.1f}\n", fx,
                 d.fy_from_fov > 0 ? d.fy_from_fov : fx, 0.5 * (d.depth_width - 1),
                 0.5 * (d.depth_height - 1));
@@ -92,9 +104,11 @@ bool PrintOpened(const perception::DeviceListing& d, const perception::CameraCal
   }
   // A focal length far from the field of view's is a calibration for another camera or mode.
   const double kFocalTolerance = 0.05;
-  if (d.fx_from_fov > 0 && std::abs(k.fx / d.fx_from_fov - 1.0) > kFocalTolerance)
-    std::printf("  note: calibrated fx %.1f differs from the field of view's by %.0f %%\n", k.fx,
-                100.0 * std::abs(k.fx / d.fx_from_fov - 1.0));
+  const double fx_off = d.fx_from_fov > 0 ? std::abs(k.fx / d.fx_from_fov - 1.0) : 0.0;
+  const double fy_off = d.fy_from_fov > 0 ? std::abs(k.fy / d.fy_from_fov - 1.0) : 0.0;
+  if (fx_off > kFocalTolerance || fy_off > kFocalTolerance)
+    std::printf("  note: calibrated fx %.1f, fy %.1f differ from the field of view's by %.0f %%, "
+                "%.0f %%\n", k.fx, k.fy, 100.0 * fx_off, 100.0 * fy_off);
   if (ok) std::printf("  matches the calibration's resolution; capture can read it\n");
   return ok;
 }
@@ -145,7 +159,8 @@ int RunCameras(const CamerasCommandOptions& options) {
     std::printf("%s\n", d.recorded_frames >= 0 ? "a recording" : "opened by its URI");
     missing += PrintOpened(d, &cam) ? 0 : 1;
   }
-  for (const std::string& uri : options.uris) {
+  for (std::size_t u = 0; u < options.uris.size(); ++u) {
+    const std::string& uri = options.uris[u];
     std::printf("\n%s\n", uri.c_str());
     const perception::DeviceListing d = perception::DescribeUri(uri);
     if (!d.error.empty()) {
@@ -153,7 +168,7 @@ int RunCameras(const CamerasCommandOptions& options) {
       ++missing;
       continue;
     }
-    missing += PrintOpened(d, nullptr) ? 0 : 1;
+    missing += PrintOpened(d, nullptr, static_cast<int>(u)) ? 0 : 1;
   }
   return missing == 0 ? 0 : 3;
 }

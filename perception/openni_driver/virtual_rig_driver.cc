@@ -211,7 +211,8 @@ class DepthStream : public oni::driver::StreamBase {
           (wanted.pixelFormat != ONI_PIXEL_FORMAT_DEPTH_1_MM &&
            wanted.pixelFormat != ONI_PIXEL_FORMAT_DEPTH_100_UM))
         return ONI_STATUS_NOT_SUPPORTED;
-      if (wanted.pixelFormat != mode_.pixelFormat && running_) return ONI_STATUS_OUT_OF_FLOW;
+      if (wanted.pixelFormat == mode_.pixelFormat) return ONI_STATUS_OK;
+      if (running_) return ONI_STATUS_OUT_OF_FLOW;
       mode_.pixelFormat = wanted.pixelFormat;
       return ONI_STATUS_OK;
     }
@@ -262,8 +263,9 @@ class DepthStream : public oni::driver::StreamBase {
         }
         noise->Apply(renderer.depth_m(), renderer.cos_incidence(), k.width, k.height, &image);
         if (mode_.pixelFormat == ONI_PIXEL_FORMAT_DEPTH_100_UM) {
+          // Beyond what 16 bits of 100 um hold: no reading, as the sensor's cutoff gives.
           for (std::uint16_t& z : image)
-            z = static_cast<std::uint16_t>(std::min<int>(MaxValue(mode_), z * 10));
+            z = z * 10 > MaxValue(mode_) ? 0 : static_cast<std::uint16_t>(z * 10);
         }
       }
       OniFrame* frame = getServices().acquireFrame();
@@ -281,12 +283,13 @@ class DepthStream : public oni::driver::StreamBase {
       frame->cropOriginX = frame->cropOriginY = 0;
       frame->stride = k.width * 2;
       const int bytes = std::min(frame->dataSize, static_cast<int>(image.size() * 2));
-      if (mirrored_ && bytes == static_cast<int>(image.size() * 2)) {
+      if (mirrored_) {  // whole rows, each reversed
         auto* out = static_cast<std::uint16_t*>(frame->data);
-        for (int v = 0; v < k.height; ++v)
-          std::reverse_copy(&image[static_cast<std::size_t>(v) * k.width],
-                            &image[static_cast<std::size_t>(v + 1) * k.width],
-                            out + static_cast<std::ptrdiff_t>(v) * k.width);
+        const int rows = bytes / (2 * k.width);
+        for (int v = 0; v < rows; ++v) {
+          const std::uint16_t* row = image.data() + static_cast<std::ptrdiff_t>(v) * k.width;
+          std::reverse_copy(row, row + k.width, out + static_cast<std::ptrdiff_t>(v) * k.width);
+        }
       } else {
         std::memcpy(frame->data, image.data(), static_cast<std::size_t>(bytes));
       }

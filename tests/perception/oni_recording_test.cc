@@ -4,6 +4,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <thread>
 
@@ -92,6 +93,14 @@ class OniRecordingTest : public test::VirtualRigTest {
     std::vector<std::uint16_t> expected(renderer.depth_m().size());
     DepthNoise(off, 1).Apply(renderer.depth_m(), renderer.cos_incidence(), cam.intrinsics.width,
                              cam.intrinsics.height, &expected);
+    if (mirrored) {  // the recording is not the same read either way round
+      std::vector<std::uint16_t> reversed(expected.size());
+      for (int v = 0; v < cam.intrinsics.height; ++v)
+        std::reverse_copy(expected.begin() + v * cam.intrinsics.width,
+                          expected.begin() + (v + 1) * cam.intrinsics.width,
+                          reversed.begin() + v * cam.intrinsics.width);
+      ASSERT_NE(reversed, expected);
+    }
     CaptureOptions capture;
     capture.recovery_period_ms = 60000;  // a static noise-free scene repeats itself exactly
     RigCapture dut(playback, capture);
