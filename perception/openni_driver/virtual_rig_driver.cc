@@ -3,6 +3,7 @@
 // ($VB_VIRTUAL_SCENE, see perception/virtual_scene.h) from the rig's calibrated cameras, with
 // a PrimeSense-like error model and faults on demand. Capture code cannot tell it from
 // hardware: it opens "vbrig://SERIAL" devices through openni::Device like any other.
+// $VB_VIRTUAL_MIRROR=1 starts every depth stream mirrored, as PS1080.ini's Mirror=1 does.
 //
 // Debian ships OpenNI2's driver headers without XnLib; the export macro only needs these two.
 #define XN_NEW(type, arg) new type(arg)
@@ -152,6 +153,8 @@ class DepthStream : public oni::driver::StreamBase {
     const CameraCalibration& cam = snapshot->scene.rig.cameras[static_cast<std::size_t>(camera)];
     calibration_ = cam;
     mode_ = DepthMode(cam.intrinsics, snapshot->scene.fps);
+    const char* mirror = std::getenv("VB_VIRTUAL_MIRROR");
+    mirrored_ = mirror != nullptr && std::strcmp(mirror, "1") == 0;
   }
   ~DepthStream() override { stop(); }
 

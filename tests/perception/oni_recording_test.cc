@@ -189,6 +189,42 @@ TEST_F(OniRecordingTest, AMirroredRecordingPlaysAsTheLensSees) {
   ExpectPlaysAsTheLensSees(openni::PIXEL_FORMAT_DEPTH_1_MM, true);
 }
 
+// A live camera whose driver mirrors by default: capture switches it back (or, should it
+// refuse, turns its rows back), so frames are as the lens sees them either way.
+TEST_F(OniRecordingTest, ACameraThatMirrorsIsSwitchedBack) {
+  perception::VirtualRigOptions options;
+  options.ring.num_cameras = 1;
+  options.noise = false;
+  WriteRig(options);
+  const CameraCalibration& cam = scene_.rig.cameras[0];
+  DepthRenderer renderer(cam.intrinsics, cam.X_RigCam);
+  renderer.Render(files_.truth.mesh, scene_.floor_z_m);
+  DepthNoiseOptions off;
+  off.enabled = false;
+  std::vector<std::uint16_t> expected(renderer.depth_m().size());
+  DepthNoise(off, 1).Apply(renderer.depth_m(), renderer.cos_incidence(), cam.intrinsics.width,
+                           cam.intrinsics.height, &expected);
+  setenv("VB_VIRTUAL_MIRROR", "1", 1);  // the driver's streams start mirrored
+  CaptureOptions capture;
+  capture.recovery_period_ms = 60000;  // a static noise-free scene repeats itself exactly
+  int exact = 0, played = 0;
+  {
+    RigCapture dut(scene_.rig, capture);
+    std::uint64_t seen = 0;
+    const std::int64_t end = MonotonicNs() + 1000000000;
+    while (MonotonicNs() < end) {
+      dut.Poll();
+      if (dut.status(0).frames == seen) continue;
+      seen = dut.status(0).frames;
+      ++played;
+      exact += dut.frame(0).depth_mm == expected;
+    }
+  }
+  unsetenv("VB_VIRTUAL_MIRROR");
+  EXPECT_GE(played, 10);
+  EXPECT_EQ(exact, played);
+}
+
 TEST(DepthUnitsTest, TenthsAreRoundedToMillimetresAndShiftsAreRefused) {
   // Two rows of three, a stride of four: the fourth of each row is padding.
   const std::vector<std::uint16_t> tenths = {0, 14, 15, 9, 12345, 65535, 10, 7};
