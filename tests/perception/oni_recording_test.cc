@@ -90,13 +90,7 @@ class OniRecordingTest : public test::VirtualRigTest {
     RigCalibration playback = rig_calibration;
     playback.cameras[0].uri = file.string();
     const CameraCalibration& cam = playback.cameras[0];
-    DepthRenderer renderer(cam.intrinsics, cam.X_RigCam);
-    renderer.Render(files_.truth.mesh, scene_.floor_z_m);
-    DepthNoiseOptions off;
-    off.enabled = false;
-    std::vector<std::uint16_t> expected(renderer.depth_m().size());
-    DepthNoise(off, 1).Apply(renderer.depth_m(), renderer.cos_incidence(), cam.intrinsics.width,
-                             cam.intrinsics.height, &expected);
+    const std::vector<std::uint16_t> expected = NoiseFreeRender(cam);
     if (mirrored) {  // the recording is not the same read either way round
       std::vector<std::uint16_t> reversed(expected.size());
       for (int v = 0; v < cam.intrinsics.height; ++v)
@@ -105,12 +99,34 @@ class OniRecordingTest : public test::VirtualRigTest {
                           reversed.begin() + v * cam.intrinsics.width);
       ASSERT_NE(reversed, expected);
     }
+    const auto [played, exact] = PlayedAndExact(playback, expected, 1.5);
+    EXPECT_GE(played, 10);
+    EXPECT_EQ(exact, played);
+  }
+
+  // Camera 0's noise-free render in millimetres, as the virtual driver gives it.
+  std::vector<std::uint16_t> NoiseFreeRender(const CameraCalibration& cam) const {
+    DepthRenderer renderer(cam.intrinsics, cam.X_RigCam);
+    renderer.Render(files_.truth.mesh, scene_.floor_z_m);
+    DepthNoiseOptions off;
+    off.enabled = false;
+    std::vector<std::uint16_t> depth(renderer.depth_m().size());
+    DepthNoise(off, 1).Apply(renderer.depth_m(), renderer.cos_incidence(), cam.intrinsics.width,
+                             cam.intrinsics.height, &depth);
+    return depth;
+  }
+
+  // Camera 0 of @p rig captured for @p seconds: the frames played, and how many equal
+  // @p expected.
+  static std::pair<int, int> PlayedAndExact(const RigCalibration& rig,
+                                            const std::vector<std::uint16_t>& expected,
+                                            double seconds) {
     CaptureOptions capture;
     capture.recovery_period_ms = 60000;  // a static noise-free scene repeats itself exactly
-    RigCapture dut(playback, capture);
+    RigCapture dut(rig, capture);
     int exact = 0, played = 0;
     std::uint64_t seen = 0;
-    const std::int64_t end = MonotonicNs() + 1500000000;
+    const std::int64_t end = MonotonicNs() + static_cast<std::int64_t>(seconds * 1e9);
     while (MonotonicNs() < end) {
       dut.Poll();
       if (dut.status(0).frames == seen) continue;
@@ -118,8 +134,7 @@ class OniRecordingTest : public test::VirtualRigTest {
       ++played;
       exact += dut.frame(0).depth_mm == expected;
     }
-    EXPECT_GE(played, 10);
-    EXPECT_EQ(exact, played);
+    return {played, exact};
   }
 };
 
@@ -200,30 +215,9 @@ TEST_F(OniRecordingTest, ACameraThatMirrorsIsSwitchedBack) {
   options.ring.num_cameras = 1;
   options.noise = false;
   WriteRig(options);
-  const CameraCalibration& cam = scene_.rig.cameras[0];
-  DepthRenderer renderer(cam.intrinsics, cam.X_RigCam);
-  renderer.Render(files_.truth.mesh, scene_.floor_z_m);
-  DepthNoiseOptions off;
-  off.enabled = false;
-  std::vector<std::uint16_t> expected(renderer.depth_m().size());
-  DepthNoise(off, 1).Apply(renderer.depth_m(), renderer.cos_incidence(), cam.intrinsics.width,
-                           cam.intrinsics.height, &expected);
+  const std::vector<std::uint16_t> expected = NoiseFreeRender(scene_.rig.cameras[0]);
   setenv("VB_VIRTUAL_MIRROR", "1", 1);  // the driver's streams start mirrored
-  CaptureOptions capture;
-  capture.recovery_period_ms = 60000;  // a static noise-free scene repeats itself exactly
-  int exact = 0, played = 0;
-  {
-    RigCapture dut(scene_.rig, capture);
-    std::uint64_t seen = 0;
-    const std::int64_t end = MonotonicNs() + 1000000000;
-    while (MonotonicNs() < end) {
-      dut.Poll();
-      if (dut.status(0).frames == seen) continue;
-      seen = dut.status(0).frames;
-      ++played;
-      exact += dut.frame(0).depth_mm == expected;
-    }
-  }
+  const auto [played, exact] = PlayedAndExact(scene_.rig, expected, 1.0);
   unsetenv("VB_VIRTUAL_MIRROR");
   EXPECT_GE(played, 10);
   EXPECT_EQ(exact, played);
