@@ -2,8 +2,8 @@
 # The saw's verdict, read from the saw: virtualbutcherd on the virtual OpenNI2 rig sends its
 # jobs to the reference saw controller in another process (`vbutcher saw-sim --unix`, the
 # same controller as on the HIL VM's vcan, so it outlives a daemon restart). A stream of
-# carcasses, a restart of the daemon halfway (its job numbers kept in its state file), then
-# the rest. Every job the daemon sent must be one the saw accepted, by the saw's own counters,
+# carcasses, each hung once the one before has its verdict (paced_line), a restart of the
+# daemon halfway (its job numbers kept in its state file), then the rest. Every job the daemon sent must be one the saw accepted, by the saw's own counters,
 # and the daemon's verdicts must say the same.
 # Usage: saw_verdict_test.sh <vbutcher> <virtualbutcherd> [CARCASSES]
 set -euo pipefail
@@ -38,12 +38,9 @@ run_daemon() {
   local pid=$!
   for _ in $(seq 200); do grep -q "LCM on" "$work/daemon$1.log" && break; sleep 0.1; done
   grep -q "LCM on" "$work/daemon$1.log" || fail "daemon $1 did not come up"
-  "$vbutcher" virtual-line --scene "$work/rig/scene.yaml" --count "$2" --seed "$3" --hang-s 1.6 \
-    --gap-s 0.4 >/dev/null &
-  local line=$!
+  paced_line "$vbutcher" "$work/rig/scene.yaml" "$2" "$3" "$work/daemon$1.log" $pid ||
+    fail "daemon $1: a carcass got no verdict"
   wait $pid || fail "daemon $1 exited with an error"
-  kill $line 2>/dev/null || true
-  wait $line 2>/dev/null || true
   sed -i '/^carcass:/d' "$work/rig/scene.yaml"
   grep -q "stopped after $2 jobs" "$work/daemon$1.log" || fail "daemon $1 did not do its $2 jobs"
 }

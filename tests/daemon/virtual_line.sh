@@ -24,3 +24,26 @@ job: {$4}
 X_SawRig: {translation: [0, 0, 1.8], rotation_wxyz: [1, 0, 0, 0]}
 YAML
 }
+# paced_line <vbutcher> <scene> <count> <first seed> <daemon log> <daemon pid>: hangs <count>
+# carcasses one at a time (1.6 s on the hook, 0.4 s gap), and hangs the next only once the
+# daemon has logged a saw verdict for every one so far. A test of verdicts then does not
+# depend on the machine's speed (a morph on a loaded 2-core machine took up to 2.8 s against
+# the line's 2 s); `scripts/bench-daemon` measures the pace. Returns 1 naming the carcass
+# when no verdict came within 60 s or the daemon exited.
+paced_line() {
+  local k verdicts
+  for k in $(seq "$3"); do
+    "$1" virtual-line --scene "$2" --count 1 --seed $(($4 + k - 1)) --hang-s 1.6 --gap-s 0.4 \
+      >/dev/null || return 1
+    for _ in $(seq 600); do
+      verdicts=$(grep -c "C[0-9]*: saw verdict " "$5" || true)
+      [ "$verdicts" -ge "$k" ] && break
+      kill -0 "$6" 2>/dev/null || break
+      sleep 0.1
+    done
+    if [ "$verdicts" -lt "$k" ]; then
+      echo "paced_line: carcass $k of $3 (seed $(($4 + k - 1))) has no saw verdict in $5" >&2
+      return 1
+    fi
+  done
+}
