@@ -79,6 +79,27 @@ Eigen::Matrix3Xd Apply(const Similarity& fit, const Eigen::Matrix3Xd& points) {
   return out;
 }
 
+// @p placement after a half turn of the template about its longest principal axis (of
+// @p template_samples) and, for @p count 2, about its shortest, each about the samples' mean,
+// which stays where @p placement puts it.
+std::vector<Similarity> HalfTurns(const Similarity& placement,
+                                  const Eigen::Matrix3Xd& template_samples, int count) {
+  const Eigen::Vector3d mean = template_samples.rowwise().mean();
+  const Eigen::Matrix3Xd centred = template_samples.colwise() - mean;
+  // Eigenvalues ascending: column 2 is the longest axis, column 0 the shortest.
+  const Eigen::Matrix3d axes =
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(centred * centred.transpose()).eigenvectors();
+  std::vector<Similarity> out;
+  for (int k = 0; k < std::min(count, 2); ++k) {
+    Similarity turned = placement;
+    turned.R = placement.R *
+               Eigen::AngleAxisd(std::numbers::pi, axes.col(k == 0 ? 2 : 0)).toRotationMatrix();
+    turned.t = placement(mean) - turned.scale * (turned.R * mean);
+    out.push_back(turned);
+  }
+  return out;
+}
+
 // Similarities laying the principal axes of @p from on those of @p to, one per proper
 // rotation of the cube (the axes' order and signs are not telling for a bent shape), scaled
 // by the ratio of the spreads.
@@ -299,6 +320,40 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
         if (0.5 * (relative.trace() - 1.0) >= cos_distinct) distinct = false;
       }
       if (distinct) picked.push_back(k);
+    }
+    // The best placement turned half round about the template's longest and shortest axes:
+    // the turns a placement confuses (front for back, upside down), and when the pose changed
+    // far, the ones that none of the placements above may be near (docs/decisions.md).
+    if (options.turned_candidates > 0 && !picked.empty()) {
+      const std::vector<Similarity> turns =
+          HalfTurns(candidates[picked.front()].from_to, template_samples, options.turned_candidates);
+      std::vector<Similarity> refined(turns.size());
+      std::vector<double> refined_disagreement(turns.size(),
+                                               std::numeric_limits<double>::infinity());
+      ForEach(pool, static_cast<int>(turns.size()), [&](int e) {
+        const auto k = static_cast<std::size_t>(e);
+        refined[k] = RefineSimilarity(template_samples, target_index, target, turns[k],
+                                      options.refine_iterations);
+        if (!refined[k].Usable() || !association.AcceptsOrientation(refined[k].R)) return;
+        refined_disagreement[k] = SurfaceDisagreement(template_samples, target_samples,
+                                                      target_index, target, refined[k]);
+      });
+      for (std::size_t k = 0; k < turns.size(); ++k) {
+        if (std::isinf(refined_disagreement[k])) continue;
+        const bool distinct = std::all_of(picked.begin(), picked.end(), [&](std::size_t p) {
+          const Eigen::Matrix3d relative = refined[k].R * candidates[p].from_to.R.transpose();
+          return 0.5 * (relative.trace() - 1.0) < cos_distinct;
+        });
+        if (!distinct) continue;
+        Association candidate;
+        candidate.ok = true;
+        candidate.from_to = refined[k];
+        candidates.push_back(std::move(candidate));
+        disagreements.push_back(refined_disagreement[k]);
+        articulated.push_back(std::numeric_limits<double>::infinity());
+        articulated_states.emplace_back();
+        picked.push_back(candidates.size() - 1);
+      }
     }
     if (options.articulation.max_normal_angle_deg < 90.0) {
       posture_normals = PostureNormals(target, target_index, target_normals,

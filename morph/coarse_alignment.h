@@ -58,6 +58,11 @@ struct CoarseOptions {
   /// posture fit (ArticulateTemplate) and the one that then fits the target best is chosen;
   /// 0: the rigid choice and the terminal-driven deformation alone.
   int articulated_candidates = 4;
+  /// The best of those placements turned half round about the template's longest principal
+  /// axis (1) and also its shortest (2), refined, join them when distinct: the front-for-back
+  /// and upside-down turns a placement confuses, which the candidates above may all miss
+  /// when the pose changed far. 0: none.
+  int turned_candidates = 2;
   /// Rounds of the posture fit on each candidate before the choice; the chosen one is then
   /// fitted for all of `articulation.rounds`.
   int choice_rounds = 3;
