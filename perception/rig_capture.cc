@@ -489,6 +489,10 @@ void RigCapture::Read(Camera* cam) {
   }
   CameraStatus& s = cam->status;
   const std::uint64_t hash = XXH3_64bits(f.depth_mm.data(), f.depth_mm.size() * 2);
+  // OpenNI2's file player hands a reader slower than the recording the frame it already
+  // read again, index and all: not a new frame (a camera that stops delivering new ones is
+  // found frozen by its silence).
+  if (s.frames > 0 && hash == f.hash && ref.getFrameIndex() == f.device_frame_index) return;
   s.identical_run = (s.frames > 0 && hash == f.hash) ? s.identical_run + 1 : 0;
   f.hash = hash;
   f.valid_pixels = static_cast<int>(f.depth_mm.size()) -

@@ -18,7 +18,9 @@ source "$(dirname "$0")/virtual_line.sh"
 virtual_line "$vbutcher" "$work"
 echo "carcass: carcass.ply" >>"$work/rig/scene.yaml"  # virtual-rig wrote it; hang it
 "$vbutcher" record --rig "$work/rig/rig.yaml" --scene "$work/rig/scene.yaml" \
-  --out "$work/rec" --seconds 1 >/dev/null || fail "record"
+  --out "$work/rec" --seconds 3 >/dev/null || fail "record"
+# 3 s of recording: OpenNI2's player loops it, and a reader that pauses about one loop (a
+# sanitised fusion takes 1.7 s) is handed the frame it read before, which capture skips.
 unset VB_VIRTUAL_SCENE
 # A sanitizer build morphs 20x slower: the deadline and the result's age allow it.
 cat >"$work/vbd.yaml" <<YAML
