@@ -347,6 +347,10 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
         if (!distinct) continue;
         Association candidate;
         candidate.ok = true;
+        if (skeleton_candidates > 0) {  // the search's counts, for the report
+          candidate.candidates = candidates.front().candidates;
+          candidate.pruned = candidates.front().pruned;
+        }
         candidate.from_to = refined[k];
         candidates.push_back(std::move(candidate));
         disagreements.push_back(refined_disagreement[k]);

@@ -25,25 +25,50 @@ X_SawRig: {translation: [0, 0, 1.8], rotation_wxyz: [1, 0, 0, 0]}
 YAML
 }
 # paced_line <vbutcher> <scene> <count> <first seed> <daemon log> <daemon pid>: hangs <count>
-# carcasses one at a time (1.6 s on the hook, 0.4 s gap), and hangs the next only once the
-# daemon has logged a saw verdict for every one so far. A test of verdicts then does not
-# depend on the machine's speed (a morph on a loaded 2-core machine took up to 2.8 s against
-# the line's 2 s); `scripts/bench-daemon` measures the pace. Returns 1 naming the carcass
-# when no verdict came within 60 s or the daemon exited.
+# carcasses one at a time, each until the daemon has taken it as a job, then empties the hook
+# and waits for the job's saw verdict and for the daemon to see the hook empty before the
+# next. A test of verdicts then does not depend on the machine's speed (a morph on a loaded
+# 2-core machine took up to 2.8 s against the line's 2 s); `scripts/bench-daemon` measures the
+# pace. Returns 1 naming the carcass when a step took over 60 s or the daemon exited.
 paced_line() {
-  local k verdicts
+  local k line
   for k in $(seq "$3"); do
-    "$1" virtual-line --scene "$2" --count 1 --seed $(($4 + k - 1)) --hang-s 1.6 --gap-s 0.4 \
-      >/dev/null || return 1
-    for _ in $(seq 600); do
-      verdicts=$(grep -c "C[0-9]*: saw verdict " "$5" || true)
-      [ "$verdicts" -ge "$k" ] && break
-      kill -0 "$6" 2>/dev/null || break
-      sleep 0.1
-    done
-    if [ "$verdicts" -lt "$k" ]; then
-      echo "paced_line: carcass $k of $3 (seed $(($4 + k - 1))) has no saw verdict in $5" >&2
+    "$1" virtual-line --scene "$2" --count 1 --seed $(($4 + k - 1)) --hang-s 600 --gap-s 0 \
+      >/dev/null &
+    line=$!
+    # Taken: a job started (morphing) or was refused before its morph.
+    _paced_wait "$5" "$6" "$k" 'C[0-9]*: \(morphing\|saw verdict\)' "-o" || true
+    kill "$line" 2>/dev/null || true
+    wait "$line" 2>/dev/null || true
+    sed -i '/^carcass:/d' "$2"
+    # (After the last, a daemon told to stop after it may exit before it sees the hook empty.)
+    _paced_wait "$5" "$6" "$k" 'C[0-9]*: saw verdict ' "" && { [ "$k" -eq "$3" ] ||
+      _paced_wait "$5" "$6" "$k" 'the carcass left\|changed without an empty-hook gap' ""; } || {
+      echo "paced_line: carcass $k of $3 (seed $(($4 + k - 1))) has no saw verdict or did not" \
+        "leave in $5" >&2
       return 1
-    fi
+    }
   done
+}
+# _paced_wait <log> <pid> <n> <pattern> <-o or "">: until <n> distinct carcasses (-o) or lines
+# match <pattern> in <log>, for at most 60 s; 1 when not reached.
+_paced_wait() {
+  local n
+  for _ in $(seq 600); do
+    if [ -n "$5" ]; then
+      n=$(grep -o "$4" "$1" | cut -d: -f1 | sort -u | wc -l || true)
+    else
+      n=$(grep -c "$4" "$1" || true)
+    fi
+    [ "${n:-0}" -ge "$3" ] && return 0
+    kill -0 "$2" 2>/dev/null || break
+    sleep 0.1
+  done
+  # Once more: the daemon may have logged the last line and exited since the count above.
+  if [ -n "$5" ]; then
+    n=$(grep -o "$4" "$1" | cut -d: -f1 | sort -u | wc -l || true)
+  else
+    n=$(grep -c "$4" "$1" || true)
+  fi
+  [ "${n:-0}" -ge "$3" ]
 }
