@@ -266,22 +266,28 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   // the target's in each of the 24 ways a proper rotation can, then refined the same way.
   // When the skeletons disagree too much for any pairing to be right (a shape with many
   // alike limbs, a limb lost to occlusion), one of these is.
+  // Each of @p starts refined, and its disagreement with the target: infinite for a refined
+  // placement that is unusable or tilted past the prior (not kept).
+  const auto refine_all = [&](const std::vector<Similarity>& starts,
+                              std::vector<Similarity>* refined, std::vector<double>* disagreement) {
+    refined->assign(starts.size(), Similarity{});
+    disagreement->assign(starts.size(), std::numeric_limits<double>::infinity());
+    ForEach(pool, static_cast<int>(starts.size()), [&](int f) {
+      const auto k = static_cast<std::size_t>(f);
+      (*refined)[k] = RefineSimilarity(template_samples, target_index, target, starts[k],
+                                       options.refine_iterations);
+      if (!(*refined)[k].Usable() || !association.AcceptsOrientation((*refined)[k].R)) return;
+      (*disagreement)[k] = SurfaceDisagreement(template_samples, target_samples, target_index,
+                                               target, (*refined)[k]);
+    });
+  };
   if (options.frame_candidates && options.refine_iterations > 0) {
     std::vector<Similarity> starts = PrincipalFrameCandidates(template_samples, target_samples);
     std::erase_if(starts,
                   [&](const Similarity& s) { return !association.AcceptsOrientation(s.R); });
-    std::vector<Similarity> refined(starts.size());
-    // Infinite for a refined placement that is unusable or tilted past the prior: not kept.
-    std::vector<double> refined_disagreement(starts.size(),
-                                             std::numeric_limits<double>::infinity());
-    ForEach(pool, static_cast<int>(starts.size()), [&](int f) {
-      const auto k = static_cast<std::size_t>(f);
-      refined[k] = RefineSimilarity(template_samples, target_index, target, starts[k],
-                                    options.refine_iterations);
-      if (!refined[k].Usable() || !association.AcceptsOrientation(refined[k].R)) return;
-      refined_disagreement[k] =
-          SurfaceDisagreement(template_samples, target_samples, target_index, target, refined[k]);
-    });
+    std::vector<Similarity> refined;
+    std::vector<double> refined_disagreement;
+    refine_all(starts, &refined, &refined_disagreement);
     for (std::size_t k = 0; k < starts.size(); ++k) {
       if (std::isinf(refined_disagreement[k])) continue;
       Association candidate;
@@ -327,17 +333,9 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     if (options.turned_candidates > 0 && !picked.empty()) {
       const std::vector<Similarity> turns =
           HalfTurns(candidates[picked.front()].from_to, template_samples, options.turned_candidates);
-      std::vector<Similarity> refined(turns.size());
-      std::vector<double> refined_disagreement(turns.size(),
-                                               std::numeric_limits<double>::infinity());
-      ForEach(pool, static_cast<int>(turns.size()), [&](int e) {
-        const auto k = static_cast<std::size_t>(e);
-        refined[k] = RefineSimilarity(template_samples, target_index, target, turns[k],
-                                      options.refine_iterations);
-        if (!refined[k].Usable() || !association.AcceptsOrientation(refined[k].R)) return;
-        refined_disagreement[k] = SurfaceDisagreement(template_samples, target_samples,
-                                                      target_index, target, refined[k]);
-      });
+      std::vector<Similarity> refined;
+      std::vector<double> refined_disagreement;
+      refine_all(turns, &refined, &refined_disagreement);
       for (std::size_t k = 0; k < turns.size(); ++k) {
         if (std::isinf(refined_disagreement[k])) continue;
         const bool distinct = std::all_of(picked.begin(), picked.end(), [&](std::size_t p) {
