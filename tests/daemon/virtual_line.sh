@@ -53,22 +53,21 @@ paced_line() {
 # _paced_wait <log> <pid> <n> <pattern> <-o or "">: until <n> distinct carcasses (-o) or lines
 # match <pattern> in <log>, for at most 60 s; 1 when not reached.
 _paced_wait() {
-  local n
   for _ in $(seq 600); do
-    if [ -n "$5" ]; then
-      n=$(grep -o "$4" "$1" | cut -d: -f1 | sort -u | wc -l || true)
-    else
-      n=$(grep -c "$4" "$1" || true)
-    fi
-    [ "${n:-0}" -ge "$3" ] && return 0
+    [ "$(_paced_count "$1" "$4" "$5")" -ge "$3" ] && return 0
     kill -0 "$2" 2>/dev/null || break
     sleep 0.1
   done
   # Once more: the daemon may have logged the last line and exited since the count above.
-  if [ -n "$5" ]; then
-    n=$(grep -o "$4" "$1" | cut -d: -f1 | sort -u | wc -l || true)
+  [ "$(_paced_count "$1" "$4" "$5")" -ge "$3" ]
+}
+# _paced_count <log> <pattern> <-o or "">: distinct carcasses (-o) or lines matching.
+_paced_count() {
+  local n
+  if [ -n "$3" ]; then
+    n=$(grep -o "$2" "$1" | cut -d: -f1 | sort -u | wc -l || true)
   else
-    n=$(grep -c "$4" "$1" || true)
+    n=$(grep -c "$2" "$1" || true)
   fi
-  [ "${n:-0}" -ge "$3" ]
+  echo "${n:-0}"
 }
