@@ -281,6 +281,17 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
                                                target, (*refined)[k]);
     });
   };
+  // A candidate placed by from_to, with the skeleton search's counts for the report.
+  const auto placed = [&](const Similarity& from_to) {
+    Association candidate;
+    candidate.ok = true;
+    if (skeleton_candidates > 0) {
+      candidate.candidates = candidates.front().candidates;
+      candidate.pruned = candidates.front().pruned;
+    }
+    candidate.from_to = from_to;
+    return candidate;
+  };
   if (options.frame_candidates && options.refine_iterations > 0) {
     std::vector<Similarity> starts = PrincipalFrameCandidates(template_samples, target_samples);
     std::erase_if(starts,
@@ -290,15 +301,8 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     refine_all(starts, &refined, &refined_disagreement);
     for (std::size_t k = 0; k < starts.size(); ++k) {
       if (std::isinf(refined_disagreement[k])) continue;
-      Association candidate;
-      candidate.ok = true;
-      if (skeleton_candidates > 0) {  // the search's counts, for the report
-        candidate.candidates = candidates.front().candidates;
-        candidate.pruned = candidates.front().pruned;
-      }
-      candidate.from_to = refined[k];
+      candidates.push_back(placed(refined[k]));
       disagreements.push_back(refined_disagreement[k]);
-      candidates.push_back(std::move(candidate));
     }
   }
   // The posture fit on the best distinct placements: the true one is the one whose limbs,
@@ -317,15 +321,16 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
               [&](std::size_t a, std::size_t b) { return disagreements[a] < disagreements[b]; });
     const double cos_distinct = std::cos(options.distinct_angle_deg * std::numbers::pi / 180.0);
     std::vector<std::size_t> picked;
+    // Whether rotation R is turned more than distinct_angle_deg from every picked placement.
+    const auto distinct = [&](const Eigen::Matrix3d& R) {
+      return std::all_of(picked.begin(), picked.end(), [&](std::size_t p) {
+        const Eigen::Matrix3d relative = R * candidates[p].from_to.R.transpose();
+        return 0.5 * (relative.trace() - 1.0) < cos_distinct;
+      });
+    };
     for (std::size_t k : order) {
       if (static_cast<int>(picked.size()) >= options.articulated_candidates) break;
-      bool distinct = true;
-      for (std::size_t p : picked) {
-        const Eigen::Matrix3d relative =
-            candidates[k].from_to.R * candidates[p].from_to.R.transpose();
-        if (0.5 * (relative.trace() - 1.0) >= cos_distinct) distinct = false;
-      }
-      if (distinct) picked.push_back(k);
+      if (distinct(candidates[k].from_to.R)) picked.push_back(k);
     }
     // The best placement turned half round about the template's longest and shortest axes:
     // the turns a placement confuses (front for back, upside down), and when the pose changed
@@ -337,20 +342,8 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
       std::vector<double> refined_disagreement;
       refine_all(turns, &refined, &refined_disagreement);
       for (std::size_t k = 0; k < turns.size(); ++k) {
-        if (std::isinf(refined_disagreement[k])) continue;
-        const bool distinct = std::all_of(picked.begin(), picked.end(), [&](std::size_t p) {
-          const Eigen::Matrix3d relative = refined[k].R * candidates[p].from_to.R.transpose();
-          return 0.5 * (relative.trace() - 1.0) < cos_distinct;
-        });
-        if (!distinct) continue;
-        Association candidate;
-        candidate.ok = true;
-        if (skeleton_candidates > 0) {  // the search's counts, for the report
-          candidate.candidates = candidates.front().candidates;
-          candidate.pruned = candidates.front().pruned;
-        }
-        candidate.from_to = refined[k];
-        candidates.push_back(std::move(candidate));
+        if (std::isinf(refined_disagreement[k]) || !distinct(refined[k].R)) continue;
+        candidates.push_back(placed(refined[k]));
         disagreements.push_back(refined_disagreement[k]);
         articulated.push_back(std::numeric_limits<double>::infinity());
         articulated_states.emplace_back();
