@@ -262,10 +262,6 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
       }
     });
   }
-  // Placements that do not come from the skeletons: the template's principal axes laid on
-  // the target's in each of the 24 ways a proper rotation can, then refined the same way.
-  // When the skeletons disagree too much for any pairing to be right (a shape with many
-  // alike limbs, a limb lost to occlusion), one of these is.
   // Each of @p starts refined, and its disagreement with the target: infinite for a refined
   // placement that is unusable or tilted past the prior (not kept).
   const auto refine_all = [&](const std::vector<Similarity>& starts,
@@ -292,6 +288,10 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     candidate.from_to = from_to;
     return candidate;
   };
+  // Placements that do not come from the skeletons: the template's principal axes laid on
+  // the target's in each of the 24 ways a proper rotation can, then refined the same way.
+  // When the skeletons disagree too much for any pairing to be right (a shape with many
+  // alike limbs, a limb lost to occlusion), one of these is.
   if (options.frame_candidates && options.refine_iterations > 0) {
     std::vector<Similarity> starts = PrincipalFrameCandidates(template_samples, target_samples);
     std::erase_if(starts,

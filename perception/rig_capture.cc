@@ -468,15 +468,16 @@ void RigCapture::UpdateHealth(Camera* cam, std::int64_t now) {
   cam->recovery_step = 1;
 }
 
-bool RigCapture::Read(Camera* cam) {
+RigCapture::ReadResult RigCapture::Read(Camera* cam) {
   openni::VideoFrameRef ref;
-  if (cam->depth.readFrame(&ref) != openni::STATUS_OK || !ref.isValid()) return true;
+  if (cam->depth.readFrame(&ref) != openni::STATUS_OK || !ref.isValid())
+    return ReadResult::kNothing;
   DepthFrame& f = cam->frame;
   const std::int64_t now = MonotonicNs();
   if (ref.getWidth() != f.width || ref.getHeight() != f.height ||
       ref.getDataSize() < static_cast<int>(f.depth_mm.size() * 2)) {
     cam->status.last_error = "frame size differs from the calibration";
-    return true;
+    return ReadResult::kNothing;
   }
   // Each frame's own format: a recording keeps the one it was made in.
   if (!CopyDepthAsMillimetres(ref.getVideoMode().getPixelFormat(),
@@ -485,14 +486,15 @@ bool RigCapture::Read(Camera* cam) {
                               f.depth_mm.data())) {
     SetHealth(cam, CameraHealth::kMissing, now,
               UnreadableFormat(ref.getVideoMode().getPixelFormat()));
-    return true;
+    return ReadResult::kNothing;
   }
   CameraStatus& s = cam->status;
   const std::uint64_t hash = XXH3_64bits(f.depth_mm.data(), f.depth_mm.size() * 2);
   // OpenNI2's file player hands a reader slower than the recording the frame it already
   // read again, index and all: not a new frame (a camera that stops delivering new ones is
   // found frozen by its silence).
-  if (s.frames > 0 && hash == f.hash && ref.getFrameIndex() == f.device_frame_index) return false;
+  if (s.frames > 0 && hash == f.hash && ref.getFrameIndex() == f.device_frame_index)
+    return ReadResult::kRepeated;
   s.identical_run = (s.frames > 0 && hash == f.hash) ? s.identical_run + 1 : 0;
   f.hash = hash;
   f.valid_pixels = static_cast<int>(f.depth_mm.size()) -
@@ -519,7 +521,7 @@ bool RigCapture::Read(Camera* cam) {
       s.fps_window_frames = 0;
     }
   }
-  return true;
+  return ReadResult::kNewFrame;
 }
 
 int RigCapture::Poll() {
@@ -549,10 +551,9 @@ int RigCapture::Poll() {
         ready_.data(), static_cast<int>(ready_.size()), &index, timeout);
     if (rc != openni::STATUS_OK || index < 0 || index >= static_cast<int>(ready_.size())) break;
     Camera* cam = cameras_[static_cast<std::size_t>(ready_camera_[static_cast<std::size_t>(index)])].get();
-    const std::uint64_t before = cam->status.frames;
-    const bool read = Read(cam);
-    if (read && cam->status.frames == before) break;  // nothing usable came: do not spin
-    fresh += cam->status.frames != before;
+    const ReadResult read = Read(cam);
+    if (read == ReadResult::kNothing) break;  // do not spin
+    fresh += read == ReadResult::kNewFrame;
     timeout = 0;
   }
   const std::int64_t now = MonotonicNs();

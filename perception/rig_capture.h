@@ -101,9 +101,10 @@ class RigCapture {
   struct Camera;
   void Open(Camera* cam);
   void Close(Camera* cam);
-  /// Reads @p cam's waiting frame. False when that was the last frame handed again (OpenNI2's
-  /// player does so to a slow reader): the drain reads on past it.
-  bool Read(Camera* cam);
+  /// What Read found waiting: a new frame; the last frame handed again (OpenNI2's player does
+  /// so to a slow reader), which the drain reads on past; or nothing usable.
+  enum class ReadResult { kNewFrame, kRepeated, kNothing };
+  ReadResult Read(Camera* cam);
   void UpdateHealth(Camera* cam, std::int64_t now_ns);
   void SetHealth(Camera* cam, CameraHealth health, std::int64_t now_ns, const char* why);
 
