@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <utility>
 #include <vector>
 
 #include "io/error.h"
@@ -50,6 +51,35 @@ double MeanNearest(const Eigen::Matrix3Xd& from, const Eigen::Matrix3Xd& to) {
   for (Eigen::Index i = 0; i < from.cols(); ++i)
     sum += (to.col(index.Nearest(from.col(i))) - from.col(i)).norm();
   return sum / static_cast<double>(from.cols());
+}
+
+// @p state with every graph node of limb @p a (BranchGuide::node_branch) carried rigidly by
+// node @p carrier, whose transform is taken as the nearest rotation, and then moved so that
+// the limb's root (@p root_weights on @p root_rest) lands on @p root: the limb in its rest
+// shape, hung from where @p state has its root. The other nodes keep their transforms.
+DeformationState CarriedAtRest(const DeformationGraph& graph, const BranchGuide& guide, int a,
+                               int carrier, const NodeWeights& root_weights,
+                               const Eigen::Vector3d& root_rest, const Eigen::Vector3d& root,
+                               const DeformationState& state) {
+  const Eigen::Matrix3d R = NearestRotation(Eigen::JacobiSVD<Eigen::Matrix3d>(
+      state.rotation(carrier), Eigen::ComputeFullU | Eigen::ComputeFullV));
+  const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> R_rows = R;
+  const Eigen::Vector3d g_carrier = graph.nodes.col(carrier);
+  const Eigen::Vector3d t_carrier = state.t[static_cast<std::size_t>(carrier)];
+  DeformationState out = state;
+  const auto on_limb = [&](int j) { return guide.node_branch[static_cast<std::size_t>(j)] == a; };
+  for (int j = 0; j < graph.num_nodes(); ++j) {
+    if (!on_limb(j)) continue;
+    const Eigen::Vector3d g = graph.nodes.col(j);
+    out.R[static_cast<std::size_t>(j)] =
+        Eigen::Map<const Eigen::Matrix<double, 9, 1>>(R_rows.data());
+    out.t[static_cast<std::size_t>(j)] = R * (g - g_carrier) + g_carrier + t_carrier - g;
+  }
+  const Eigen::Vector3d shift =
+      root - DeformPoints(graph, root_weights, Eigen::Matrix3Xd(root_rest), out).col(0);
+  for (int j = 0; j < graph.num_nodes(); ++j)
+    if (on_limb(j)) out.t[static_cast<std::size_t>(j)] += shift;
+  return out;
 }
 
 // @p count unit vectors spread evenly over the sphere (a Fibonacci lattice).
@@ -204,8 +234,9 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
         elsewhere.push_back(d);
       }
     }
-    const auto score = [&](const Eigen::Matrix3d& R) {
-      const Eigen::Matrix3Xd swung_limb = (R * (limb.colwise() - root)).colwise() + root;
+    // Two-way capped distance of @p shape, swung by R about the root.
+    const auto score = [&](const Eigen::Matrix3Xd& shape, const Eigen::Matrix3d& R) {
+      const Eigen::Matrix3Xd swung_limb = (R * (shape.colwise() - root)).colwise() + root;
       double sum = 0.0;
       for (Eigen::Index i = 0; i < swung_limb.cols(); ++i) {
         const Eigen::Vector3d there = placement(swung_limb.col(i));
@@ -219,18 +250,51 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
       }
       return sum;
     };
-    const auto turn_to = [&](std::size_t k) {
-      return Eigen::Matrix3d(
-          Eigen::Quaterniond::FromTwoVectors(axis, directions[k]).toRotationMatrix());
+    // The best swing of @p shape (its axis laid on each direction), and its score.
+    const auto best_swing = [&](const Eigen::Matrix3Xd& shape) {
+      const Eigen::Vector3d shape_axis = shape.rowwise().mean() - root;
+      const auto turn_to = [&](std::size_t k) {
+        return Eigen::Matrix3d(
+            Eigen::Quaterniond::FromTwoVectors(shape_axis, directions[k]).toRotationMatrix());
+      };
+      ForEach(pool, static_cast<int>(directions.size()), [&](int k) {
+        scores[static_cast<std::size_t>(k)] = score(shape, turn_to(static_cast<std::size_t>(k)));
+      });
+      const auto k =
+          static_cast<std::size_t>(std::min_element(scores.begin(), scores.end()) - scores.begin());
+      return std::pair<Eigen::Matrix3d, double>(turn_to(k), scores[k]);
     };
-    ForEach(pool, static_cast<int>(directions.size()), [&](int k) {
-      scores[static_cast<std::size_t>(k)] = score(turn_to(static_cast<std::size_t>(k)));
-    });
-    const auto best =
-        static_cast<std::size_t>(std::min_element(scores.begin(), scores.end()) - scores.begin());
-    if (!(scores[best] < score(Eigen::Matrix3d::Identity()))) continue;
+    auto [R, best] = best_swing(limb);
+    // The fit may have bent the limb out of shape (folded along a neighbour it lay on): the
+    // limb in its rest shape, carried by the node that weighs most at its root, is swung too.
+    Eigen::Index carrier = 0;
+    root_weights.weights.col(0).maxCoeff(&carrier);
+    const DeformationState at_rest =
+        CarriedAtRest(model.graph, guide, a, root_weights.nodes(carrier, 0), root_weights,
+                      guide.template_rest.col(BranchGuide::Column(a, 0)), root, state);
+    const Eigen::Matrix3Xd rest_limb =
+        DeformPoints(model.graph, sampled.weights, sampled.rest, at_rest)(Eigen::all, mine);
+    bool from_rest = false;
+    if ((rest_limb.rowwise().mean() - root).norm() > 0) {
+      auto [rest_R, rest_best] = best_swing(rest_limb);
+      // Unfolded where it is, not swung: the lattice of directions may hold none as near.
+      const double unswung = score(rest_limb, Eigen::Matrix3d::Identity());
+      if (unswung <= rest_best) {
+        rest_R = Eigen::Matrix3d::Identity();
+        rest_best = unswung;
+      }
+      if (rest_best < best) {
+        R = rest_R;
+        best = rest_best;
+        from_rest = true;
+      }
+    }
+    // Beaten by more than rounding: the rest shape of a limb the fit left unbent scores its
+    // own place up to the last digits, and is no swing.
+    const double own = score(limb, Eigen::Matrix3d::Identity());
+    if (!(best < own - 1e-9 * own)) continue;
+    if (from_rest) state = at_rest;
     // Every graph node of the limb turns about the posed root: p -> R (T_j(p) - root) + root.
-    const Eigen::Matrix3d R = turn_to(best);
     for (int j = 0; j < model.graph.num_nodes(); ++j) {
       if (guide.node_branch[static_cast<std::size_t>(j)] != a) continue;
       const auto jj = static_cast<std::size_t>(j);

@@ -47,9 +47,13 @@ DeformationState TurnLimbs(const TemplateModel& model, const BranchGuide& guide,
 /// options.template_samples evenly spread over the template) to the target's nearest points,
 /// and from the target's samples (options.target_samples) to the template's, each distance
 /// capped at options.limb_swing_cap template sizes.
-/// A limb is swung only when a direction beats its own. Limbs go longest first, each against
-/// the others as already swung. Unlike TurnLimbs it reads no skeleton of the target: only the
-/// template's limbs (BranchGuide::vertex_branch, node_branch) and their roots.
+/// Each limb is tried in two shapes: as @p start poses it, and in its rest shape carried
+/// rigidly by the graph node that weighs most at its root and hung from the posed root (a fit
+/// may have folded a limb along a neighbour it lay on); the rest shape is also tried where it
+/// points, unswung. A limb is swung only when one of these beats its own place and shape.
+/// Limbs go longest first, each against the others as already swung. Unlike TurnLimbs it reads no
+/// skeleton of the target: only the template's limbs (BranchGuide::vertex_branch, node_branch) and
+/// their roots.
 /// @param[in] target 3 by N points in the target's frame, indexed by @p target_index.
 /// @param[in] placement the template's normalised frame -> the target's.
 /// @param[out] swung when given, the number of limbs swung.
