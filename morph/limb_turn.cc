@@ -15,6 +15,8 @@ namespace {
 
 // Target points of a limb read by the check, at most.
 constexpr std::size_t kCheckPoints = 200;
+// Relative difference of two swing scores below which they are the same up to rounding.
+constexpr double kRounding = 1e-9;
 
 // The least rotation that turns template branch @p a's axis onto target branch @p b's: each
 // axis is the principal direction of the branch's samples along the shorter of the two, from
@@ -53,32 +55,23 @@ double MeanNearest(const Eigen::Matrix3Xd& from, const Eigen::Matrix3Xd& to) {
   return sum / static_cast<double>(from.cols());
 }
 
-// @p state with every graph node of limb @p a (BranchGuide::node_branch) carried rigidly by
-// node @p carrier, whose transform is taken as the nearest rotation, and then moved so that
-// the limb's root (@p root_weights on @p root_rest) lands on @p root: the limb in its rest
-// shape, hung from where @p state has its root. The other nodes keep their transforms.
+// @p state with every graph node of limb @p a (BranchGuide::node_branch) turned by @p turn and
+// moved so that each maps the limb's rest root @p root_rest onto @p root: the limb in its rest
+// shape, turned as a whole and hung from @p root. The other nodes keep their transforms.
+// @pre @p turn is a rotation.
 DeformationState CarriedAtRest(const DeformationGraph& graph, const BranchGuide& guide, int a,
-                               int carrier, const NodeWeights& root_weights,
-                               const Eigen::Vector3d& root_rest, const Eigen::Vector3d& root,
-                               const DeformationState& state) {
-  const Eigen::Matrix3d R = NearestRotation(Eigen::JacobiSVD<Eigen::Matrix3d>(
-      state.rotation(carrier), Eigen::ComputeFullU | Eigen::ComputeFullV));
-  const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> R_rows = R;
-  const Eigen::Vector3d g_carrier = graph.nodes.col(carrier);
-  const Eigen::Vector3d t_carrier = state.t[static_cast<std::size_t>(carrier)];
+                               const Eigen::Matrix3d& turn, const Eigen::Vector3d& root_rest,
+                               const Eigen::Vector3d& root, const DeformationState& state) {
+  const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> turn_rows = turn;
   DeformationState out = state;
-  const auto on_limb = [&](int j) { return guide.node_branch[static_cast<std::size_t>(j)] == a; };
   for (int j = 0; j < graph.num_nodes(); ++j) {
-    if (!on_limb(j)) continue;
+    if (guide.node_branch[static_cast<std::size_t>(j)] != a) continue;
     const Eigen::Vector3d g = graph.nodes.col(j);
+    // p -> turn (p - root_rest) + root for every point the node carries.
     out.R[static_cast<std::size_t>(j)] =
-        Eigen::Map<const Eigen::Matrix<double, 9, 1>>(R_rows.data());
-    out.t[static_cast<std::size_t>(j)] = R * (g - g_carrier) + g_carrier + t_carrier - g;
+        Eigen::Map<const Eigen::Matrix<double, 9, 1>>(turn_rows.data());
+    out.t[static_cast<std::size_t>(j)] = turn * (g - root_rest) + root - g;
   }
-  const Eigen::Vector3d shift =
-      root - DeformPoints(graph, root_weights, Eigen::Matrix3Xd(root_rest), out).col(0);
-  for (int j = 0; j < graph.num_nodes(); ++j)
-    if (on_limb(j)) out.t[static_cast<std::size_t>(j)] += shift;
   return out;
 }
 
@@ -266,33 +259,41 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
     };
     auto [R, best] = best_swing(limb);
     // The fit may have bent the limb out of shape (folded along a neighbour it lay on): the
-    // limb in its rest shape, carried by the node that weighs most at its root, is swung too.
-    Eigen::Index carrier = 0;
-    root_weights.weights.col(0).maxCoeff(&carrier);
-    const DeformationState at_rest =
-        CarriedAtRest(model.graph, guide, a, root_weights.nodes(carrier, 0), root_weights,
-                      guide.template_rest.col(BranchGuide::Column(a, 0)), root, state);
-    const Eigen::Matrix3Xd rest_limb =
-        DeformPoints(model.graph, sampled.weights, sampled.rest, at_rest)(Eigen::all, mine);
+    // limb is also tried in its rest shape, turned as the graph node that weighs most at its
+    // root is (the nearest rotation of that node's transform) and hung from the posed root.
+    Eigen::Index slot = 0;
+    root_weights.weights.col(0).maxCoeff(&slot);
+    const int carrier = root_weights.nodes(slot, 0);  // -1 only for a root no node reaches
+    DeformationState at_rest;
     bool from_rest = false;
-    if ((rest_limb.rowwise().mean() - root).norm() > 0) {
-      auto [rest_R, rest_best] = best_swing(rest_limb);
-      // Unfolded where it is, not swung: the lattice of directions may hold none as near.
-      const double unswung = score(rest_limb, Eigen::Matrix3d::Identity());
-      if (unswung <= rest_best) {
-        rest_R = Eigen::Matrix3d::Identity();
-        rest_best = unswung;
-      }
-      if (rest_best < best) {
-        R = rest_R;
-        best = rest_best;
-        from_rest = true;
+    if (carrier >= 0) {
+      at_rest =
+          CarriedAtRest(model.graph, guide, a,
+                        NearestRotation(Eigen::JacobiSVD<Eigen::Matrix3d>(
+                            state.rotation(carrier), Eigen::ComputeFullU | Eigen::ComputeFullV)),
+                        guide.template_rest.col(BranchGuide::Column(a, 0)), root, state);
+      const Eigen::Matrix3Xd rest_limb =
+          DeformPoints(model.graph, sampled.weights, sampled.rest, at_rest)(Eigen::all, mine);
+      if ((rest_limb.rowwise().mean() - root).norm() > 0) {
+        auto [rest_R, rest_best] = best_swing(rest_limb);
+        // Unfolded where it is, not swung: the lattice of directions may hold none as near.
+        const double unswung = score(rest_limb, Eigen::Matrix3d::Identity());
+        if (unswung <= rest_best) {
+          rest_R = Eigen::Matrix3d::Identity();
+          rest_best = unswung;
+        }
+        if (rest_best < best) {
+          R = rest_R;
+          best = rest_best;
+          from_rest = true;
+        }
       }
     }
     // Beaten by more than rounding: the rest shape of a limb the fit left unbent scores its
-    // own place up to the last digits, and is no swing.
+    // own place up to the last digits, and is no swing. The cap, the most one distance adds,
+    // keeps that margin for a limb that already lies on the target (a score near 0).
     const double own = score(limb, Eigen::Matrix3d::Identity());
-    if (!(best < own - 1e-9 * own)) continue;
+    if (!(best < own - kRounding * (own + cap))) continue;
     if (from_rest) state = at_rest;
     // Every graph node of the limb turns about the posed root: p -> R (T_j(p) - root) + root.
     for (int j = 0; j < model.graph.num_nodes(); ++j) {

@@ -39,24 +39,25 @@ DeformationState TurnLimbs(const TemplateModel& model, const BranchGuide& guide,
                            const Similarity& placement, const ArticulationOptions& options,
                            int* turned = nullptr, const DeformationState* current = nullptr);
 
-/// Node transforms from @p start with each template limb swung as a whole about its root (as
-/// @p start poses it) to the direction in which it best explains the target: the limb's axis
-/// (from its root to the centroid of its samples) is laid on each of
-/// options.limb_swing_directions directions spread over the sphere, by the least rotation,
-/// and the one kept leaves the least two-way distance: from the limb's samples (of
-/// options.template_samples evenly spread over the template) to the target's nearest points,
-/// and from the target's samples (options.target_samples) to the template's, each distance
-/// capped at options.limb_swing_cap template sizes.
-/// Each limb is tried in two shapes: as @p start poses it, and in its rest shape carried
-/// rigidly by the graph node that weighs most at its root and hung from the posed root (a fit
-/// may have folded a limb along a neighbour it lay on); the rest shape is also tried where it
-/// points, unswung. A limb is swung only when one of these beats its own place and shape.
-/// Limbs go longest first, each against the others as already swung. Unlike TurnLimbs it reads no
-/// skeleton of the target: only the template's limbs (BranchGuide::vertex_branch, node_branch) and
-/// their roots.
+/// Node transforms from @p start with each template limb swung as a whole about its posed
+/// root to the direction in which it best explains the target: the limb's axis (from its root
+/// to the centroid of its samples) is laid on each of options.limb_swing_directions
+/// directions spread over the sphere, by the least rotation, and the one kept leaves the least
+/// two-way distance: from the limb's samples (of options.template_samples evenly spread over
+/// the template) to the target's nearest points, and from the target's samples
+/// (options.target_samples) to the template's, each distance capped at options.limb_swing_cap
+/// template sizes.
+/// Each limb is tried in two shapes: as @p start poses it, and in its rest shape, turned as
+/// the graph node that weighs most at its root is (the nearest rotation of that node's
+/// transform) and hung from the posed root, since a fit may have folded a limb along a
+/// neighbour it lay on; the rest shape is also scored where it points, unswung. A limb moves
+/// only when one of these beats its own place and shape by more than rounding. Limbs go
+/// longest first, each against the others as already moved. Unlike TurnLimbs it reads no
+/// skeleton of the target: only the template's limbs (BranchGuide::vertex_branch,
+/// node_branch) and their roots.
 /// @param[in] target 3 by N points in the target's frame, indexed by @p target_index.
 /// @param[in] placement the template's normalised frame -> the target's.
-/// @param[out] swung when given, the number of limbs swung.
+/// @param[out] swung when given, the number of limbs moved (swung, or unfolded in place).
 /// @param pool when given, the directions are scored on its threads (the same result on any
 ///   number of threads).
 /// @pre the guide was made for @p model (MakeBranchGuide) and `placement.Usable()`.
