@@ -38,8 +38,8 @@ for (shape, sigma, variant, method), r in by.items():
 # The coarse stage's and the full morph's mean error, clean, no noise, against what they
 # measured with these pairs (bounds 1.5 times that): a regression guard per family (a
 # humanoid, an eight-legged creature, the lamb), to tighten as the morph improves.
-measured = {("lamb", "coarse"): 0.0155, ("sydney", "coarse"): 0.0289, ("spiderblob", "coarse"): 0.0136,
-            ("lamb", "full"): 0.0051, ("sydney", "full"): 0.0161, ("spiderblob", "full"): 0.0096}
+measured = {("lamb", "coarse"): 0.0155, ("sydney", "coarse"): 0.0307, ("spiderblob", "coarse"): 0.0136,
+            ("lamb", "full"): 0.0051, ("sydney", "full"): 0.0162, ("spiderblob", "full"): 0.0097}
 for (shape, method), value in measured.items():
     got = float(by[(shape, "0", "clean", method)]["mean_err_rel"])
     if not got < 1.5 * value:
