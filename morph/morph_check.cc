@@ -56,6 +56,17 @@ MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
     check.stretch = *k;
   }
 
+  const Eigen::Index n = model.mesh.V.cols();
+  if (n > 0 && dense.mesh.V.cols() == n) {
+    const Eigen::Vector3d rest_centre = model.mesh.V.rowwise().mean();
+    const Eigen::Vector3d now_centre = dense.mesh.V.rowwise().mean();
+    const double rest = (model.mesh.V.colwise() - rest_centre).squaredNorm();
+    const double now = (dense.mesh.V.colwise() - now_centre).squaredNorm();
+    if (rest > 0) check.size = std::sqrt(now / rest);
+  }
+  const double from_size =
+      check.size >= options.min_size && check.size <= options.max_size ? 1.0 : 0.0;
+
   const double from_ambiguity =
       std::clamp((1.0 - check.ambiguity) / (1.0 - options.ambiguity_start), 0.0, 1.0);
   const double u = check.unexplained / options.unexplained_scale;
@@ -63,11 +74,16 @@ MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
   const double from_stretch = std::clamp(
       (options.stretch_end - check.stretch) / (options.stretch_end - options.stretch_start), 0.0,
       1.0);
-  check.confidence = from_ambiguity * from_unexplained * from_stretch;
-  char why[160];
-  const double worst = std::min({from_ambiguity, from_unexplained, from_stretch});
+  check.confidence = from_size * from_ambiguity * from_unexplained * from_stretch;
+  char why[200];
+  const double worst = std::min({from_size, from_ambiguity, from_unexplained, from_stretch});
   if (worst < 0.9) {
-    if (worst == from_ambiguity)
+    if (worst == from_size)
+      std::snprintf(why, sizeof(why),
+                    "the morph is %.3g times the template's size, outside [%.3g, %.3g]: a "
+                    "target in other units, or another kind of body",
+                    check.size, options.min_size, options.max_size);
+    else if (worst == from_ambiguity)
       std::snprintf(why, sizeof(why),
                     "placement ambiguous: a placement turned elsewhere fits %.0f %% as well",
                     100.0 * check.ambiguity);

@@ -24,6 +24,10 @@ struct MorphCheck {
   /// 90th percentile of |log(edge length morphed / edge length rest)| after the global
   /// scale: how far the morph had to stretch the template to fit.
   double stretch = 0.0;
+  /// The morphed template's size over the template's own: the RMS distance of its vertices
+  /// from their centroid, morphed over rest (target units over template units). Far from 1
+  /// the target is in other units (millimetres read as metres) or another kind of body.
+  double size = 1.0;
   /// In [0, 1]: 1 unless one of the signs above passes its limit, then falling to 0. The
   /// pipeline multiplies every transferred cut's own confidence by it.
   double confidence = 1.0;
@@ -49,6 +53,11 @@ struct MorphCheckOptions {
   /// about the least of a lamb forced upside down (0.25 to 0.34).
   double stretch_start = 0.20;
   double stretch_end = 0.30;
+  /// Confidence is 0 when MorphCheck::size lies outside [min_size, max_size]. Carcasses of
+  /// one kind differ in size by far less than 2 (the synthetic lambs 0.8 to 1.2, lambs of
+  /// 15 to 30 kg by 1.26 in length); a unit mistake is a factor of 10 or 1000.
+  double min_size = 0.5;
+  double max_size = 2.0;
 };
 
 /// Reads the target points the dense stage used (DenseResult::target).

@@ -102,6 +102,8 @@ const std::array kKeys = {
     VB_PROFILE_KEY(check.unexplained_scale, kFraction, 1e-4, 1.0, true, "confidence halves at this unexplained share"),
     VB_PROFILE_KEY(check.stretch_start, "log stretch", 0.0, 5.0, true, "confidence falls from this stretch"),
     VB_PROFILE_KEY(check.stretch_end, "log stretch", 0.0, 5.0, true, "confidence reaches 0 at this stretch"),
+    VB_PROFILE_KEY(check.min_size, "size ratio", 1e-3, 1.0, true, "confidence is 0 for a morph smaller than this times the template"),
+    VB_PROFILE_KEY(check.max_size, "size ratio", 1.0, 1e3, true, "confidence is 0 for a morph larger than this times the template"),
     // Cut transfer and parts.
     VB_PROFILE_KEY(cuts.support_radius, kSize, 0.0, 0.5, false, "a line point is seen with target points this close"),
     VB_PROFILE_KEY(cuts.surface_neighbours, kCount, 1, 500, false, "target points placing a line point"),

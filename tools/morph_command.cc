@@ -178,8 +178,9 @@ int RunMorphCommand(const MorphCommandOptions& options) {
         turn.axis().z(), up.x(), up.y(), up.z(), dense.mesh.V.rowwise().mean().x(),
         dense.mesh.V.rowwise().mean().y(), dense.mesh.V.rowwise().mean().z());
     std::printf(
-        "morph: check: ambiguity %.3f, unexplained %.3f, stretch %.3f -> confidence %.2f%s%s\n",
-        result.check.ambiguity, result.check.unexplained, result.check.stretch,
+        "morph: check: ambiguity %.3f, unexplained %.3f, stretch %.3f, size %.3f -> confidence "
+        "%.2f%s%s\n",
+        result.check.ambiguity, result.check.unexplained, result.check.stretch, result.check.size,
         result.check.confidence, result.check.concern.empty() ? "" : ": ",
         result.check.concern.c_str());
   }

@@ -47,6 +47,33 @@ TEST_F(MorphCheckTest, TrustsAGoodMorphAndDistrustsAnUpsideDownOne) {
   EXPECT_GE(wrong_morphs, 1) << "no wrong morph was made, so the check was not tested";
 }
 
+// A cloud in millimetres (or in the 100 um units some recorders write) read as metres is
+// morphed as well as one in metres, 1000 or 10 times larger. No sign of a bad fit shows it;
+// the size does.
+TEST_F(MorphCheckTest, DistrustsATargetInOtherUnits) {
+  perception::PosedCarcass truth;
+  const Eigen::Matrix3Xd cloud = test::HangingCloud(*carcass_, 2000003u, 0.003, &truth);
+  MorphOptions options;
+  options.coarse.upright.enabled = true;
+  const CarcassResult metres = MorphCarcass(*model_, carcass_->annotations, cloud, {}, options);
+  ASSERT_TRUE(metres.ok) << metres.error;
+  // The synthetic lambs are 0.8 to 1.2 times the template's size, and their parts vary.
+  EXPECT_GT(metres.check.size, 0.7);
+  EXPECT_LT(metres.check.size, 1.3);
+  EXPECT_GT(metres.check.confidence, 0.9) << metres.check.concern;
+
+  for (const double units : {10.0, 1000.0, 0.01}) {
+    const CarcassResult scaled =
+        MorphCarcass(*model_, carcass_->annotations, units * cloud, {}, options);
+    ASSERT_TRUE(scaled.ok) << units << ": " << scaled.error;
+    EXPECT_NEAR(scaled.check.size / metres.check.size, units, 0.05 * units);
+    EXPECT_EQ(scaled.check.confidence, 0.0) << units;
+    EXPECT_NE(scaled.check.concern.find("times the template's size"), std::string::npos)
+        << scaled.check.concern;
+    for (const TransferredCut& cut : scaled.cuts) EXPECT_EQ(cut.confidence, 0.0) << cut.name;
+  }
+}
+
 // MorphCarcass is AlignCoarse then MorphFromCoarse; the benchmark's --start-from-truth relies
 // on the second going on from whatever coarse result it is handed.
 TEST_F(MorphCheckTest, MorphFromCoarseGoesOnFromTheCoarseResultItIsGiven) {
