@@ -160,6 +160,11 @@ Eigen::Matrix3d DeformationState::rotation(int j) const {
       R[static_cast<std::size_t>(j)].data());
 }
 
+void DeformationState::set_rotation(int j, const Eigen::Matrix3d& A) {
+  Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(R[static_cast<std::size_t>(j)].data()) =
+      A;
+}
+
 namespace {
 
 // Stops the solver, unusable, once the deadline passed.

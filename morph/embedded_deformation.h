@@ -31,7 +31,10 @@ struct DeformationState {
 
   /// Identity transforms for @p num_nodes nodes.
   static DeformationState Identity(int num_nodes);
+  /// Node @p j's 3x3 matrix (R_j), unpacked from its row-major storage.
   Eigen::Matrix3d rotation(int j) const;
+  /// Sets node @p j's 3x3 matrix to @p A (any matrix; the solver's E_rot pulls it to a rotation).
+  void set_rotation(int j, const Eigen::Matrix3d& A);
 };
 
 /// A data term on a point carried by the graph: with @p normal zero it pulls the deformed

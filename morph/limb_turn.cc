@@ -62,14 +62,12 @@ double MeanNearest(const Eigen::Matrix3Xd& from, const Eigen::Matrix3Xd& to) {
 DeformationState CarriedAtRest(const DeformationGraph& graph, const BranchGuide& guide, int a,
                                const Eigen::Matrix3d& turn, const Eigen::Vector3d& root_rest,
                                const Eigen::Vector3d& root, const DeformationState& state) {
-  const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> turn_rows = turn;
   DeformationState out = state;
   for (int j = 0; j < graph.num_nodes(); ++j) {
     if (guide.node_branch[static_cast<std::size_t>(j)] != a) continue;
     const Eigen::Vector3d g = graph.nodes.col(j);
     // p -> turn (p - root_rest) + root for every point the node carries.
-    out.R[static_cast<std::size_t>(j)] =
-        Eigen::Map<const Eigen::Matrix<double, 9, 1>>(turn_rows.data());
+    out.set_rotation(j, turn);
     out.t[static_cast<std::size_t>(j)] = turn * (g - root_rest) + root - g;
   }
   return out;
@@ -145,11 +143,10 @@ DeformationState TurnLimbs(const TemplateModel& model, const BranchGuide& guide,
         seen.col(static_cast<Eigen::Index>(k)) = back(target.col(support[i]));
       if (!(MeanNearest(seen, moved) < MeanNearest(seen, rest))) continue;
     }
-    const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> row_major = R;
     for (Eigen::Index i = 0; i < n; ++i) {
-      const auto j = static_cast<std::size_t>(nodes[static_cast<std::size_t>(i)]);
-      state.R[j] = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(row_major.data());
-      state.t[j] = moved.col(i) - rest.col(i);
+      const int j = nodes[static_cast<std::size_t>(i)];
+      state.set_rotation(j, R);
+      state.t[static_cast<std::size_t>(j)] = moved.col(i) - rest.col(i);
     }
     if (turned != nullptr && !done) ++*turned;
   }
@@ -300,8 +297,7 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
       if (guide.node_branch[static_cast<std::size_t>(j)] != a) continue;
       const auto jj = static_cast<std::size_t>(j);
       const Eigen::Vector3d g = model.graph.nodes.col(j);
-      const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> turned = R * state.rotation(j);
-      state.R[jj] = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(turned.data());
+      state.set_rotation(j, R * state.rotation(j));
       state.t[jj] = R * (g + state.t[jj] - root) + root - g;
     }
     if (swung != nullptr) ++*swung;

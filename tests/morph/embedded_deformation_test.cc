@@ -57,11 +57,11 @@ TEST(DeformNormalsTest, TurnsNormalsByTheInverseTransposeOfEachNode) {
   EXPECT_EQ(turned.col(2), Eigen::Vector3d::Zero());
   // Node 0 stretches x twice: a surface x = y then runs along (2, 1, 0) and its normal is
   // A^-T n ~ (1, 2, 0), not A n ~ (2, 1, 0). Node 1 turns 90 degrees about z.
-  Eigen::Matrix<double, 3, 3, Eigen::RowMajor> stretch = Eigen::Vector3d(2, 1, 1).asDiagonal();
-  state.R[0] = Eigen::Map<Eigen::Matrix<double, 9, 1>>(stretch.data());
-  Eigen::Matrix<double, 3, 3, Eigen::RowMajor> turn =
+  const Eigen::Matrix3d stretch = Eigen::Vector3d(2, 1, 1).asDiagonal();
+  state.set_rotation(0, stretch);
+  const Eigen::Matrix3d turn =
       Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  state.R[1] = Eigen::Map<Eigen::Matrix<double, 9, 1>>(turn.data());
+  state.set_rotation(1, turn);
   turned = DeformNormals(weights, normals, state);
   const Eigen::Vector3d stretched = Eigen::Vector3d(1, 2, 0).normalized();
   EXPECT_LT((turned.col(0) - stretched).norm(), 1e-12);

@@ -164,11 +164,10 @@ TEST_F(RaisedArmTest, SwingsFromAPoseTheFitAlreadyTurned) {
   const Eigen::Matrix3d Q =
       Eigen::AngleAxisd(0.9, Eigen::Vector3d(2, 1, -1).normalized()).toRotationMatrix();
   DeformationState start = DeformationState::Identity(model_->graph.num_nodes());
-  const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> q = Q;
   for (int j = 0; j < model_->graph.num_nodes(); ++j) {
-    const auto jj = static_cast<std::size_t>(j);
-    start.R[jj] = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(q.data());
-    start.t[jj] = Q * model_->graph.nodes.col(j) - model_->graph.nodes.col(j);
+    start.set_rotation(j, Q);
+    start.t[static_cast<std::size_t>(j)] =
+        Q * model_->graph.nodes.col(j) - model_->graph.nodes.col(j);
   }
   const Eigen::Matrix3Xd target = Q * *raised_;
   const PointIndex index(target);
@@ -215,9 +214,7 @@ TEST_F(RaisedArmTest, SwingsAnArmTheFitCurledInItsRestShape) {
       (2.0 * std::numbers::pi / 3.0) / guide.template_length[static_cast<std::size_t>(arm)];
   DeformationState start = DeformationState::Identity(model_->graph.num_nodes());
   const auto set = [&](int j, const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
-    const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> rows = R;
-    start.R[static_cast<std::size_t>(j)] =
-        Eigen::Map<const Eigen::Matrix<double, 9, 1>>(rows.data());
+    start.set_rotation(j, R);
     start.t[static_cast<std::size_t>(j)] = t;
   };
   int curled = 0;
