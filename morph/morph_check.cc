@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <vector>
 
 #include "io/error.h"
@@ -56,6 +57,8 @@ MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
     check.stretch = *k;
   }
 
+  // Unknown (and refused below) unless both meshes hold the template's vertices.
+  check.size = std::numeric_limits<double>::quiet_NaN();
   const Eigen::Index n = model.mesh.V.cols();
   if (n > 0 && dense.mesh.V.cols() == n) {
     const Eigen::Vector3d rest_centre = model.mesh.V.rowwise().mean();

@@ -158,6 +158,8 @@ std::string CheckProfileValue(const ProfileKey& key, double value) {
 std::string CheckProfile(const MorphOptions& options) {
   if (!(options.check.stretch_start < options.check.stretch_end))
     return "check.stretch_start must be below check.stretch_end";
+  if (!(options.check.min_size < options.check.max_size))
+    return "check.min_size must be below check.max_size";
   if (options.dense.surface_neighbours > options.dense.max_surface_neighbours)
     return "dense.surface_neighbours must not exceed dense.max_surface_neighbours";
   if (options.cuts.slide_plane_neighbours > options.cuts.max_slide_plane_neighbours)

@@ -83,8 +83,8 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   }
   const geometry::PointCloud target = io::ReadCloud(options.target_path);
   // Every length printed below reads the target as metres. A scan exported in millimetres (or
-  // centimetres) morphs just as well, the morph being free of scale, but reads 1000 (or 100)
-  // times too large.
+  // centimetres) against a template in metres morphs just as well, the morph being free of
+  // scale, but the whole-morph check then gives every cut confidence 0 (MorphCheck::size).
   if (const double across = geometry::BoundingBoxDiagonal(target.points);
       across > kMostMetresAcross || (across > 0 && across < kLeastMetresAcross)) {
     std::fprintf(stderr,
@@ -231,6 +231,17 @@ int RunTemplateCompile(const TemplateCompileOptions& options) {
   const geometry::TriangleMesh mesh = io::ReadMesh(options.template_path);
   const io::Annotations annotations = io::LoadAnnotations(options.annotations_path);
   io::CheckAnnotationsFit(annotations, mesh, options.annotations_path.string());
+  // The daemon's clouds are in metres, and the whole-morph check refuses a carcass more than
+  // check.max_size times the template's size (or less than check.min_size).
+  if (const double across = geometry::BoundingBoxDiagonal(mesh.V);
+      across > kMostMetresAcross || across < kLeastMetresAcross) {
+    std::fprintf(stderr,
+                 "vbutcher: template compile: warning: %s is %.4g across, read as metres: is it "
+                 "in other units? The daemon's clouds are in metres, and the morph check gives "
+                 "every cut confidence 0 when the carcass is not 0.5 to 2 times the template's "
+                 "size\n",
+                 options.template_path.string().c_str(), across);
+  }
   const std::string id = options.id.empty() ? annotations.template_name : options.id;
   morph::TemplateArtifact artifact;
   try {

@@ -50,6 +50,7 @@ TEST_F(MorpherTest, MorphsTheSameOnOneThreadAsOnSeveral) {
         EXPECT_EQ(a.cuts[c].confidence, b.cuts[c].confidence) << a.cuts[c].name;
       }
       EXPECT_EQ(a.check.unexplained, b.check.unexplained);
+      EXPECT_EQ(a.check.size, b.check.size);
       ASSERT_EQ(a.parts.size(), b.parts.size());
       for (std::size_t k = 0; k < a.parts.size(); ++k)
         EXPECT_EQ(a.parts[k].volume, b.parts[k].volume) << "part " << k;
