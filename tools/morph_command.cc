@@ -28,6 +28,13 @@ namespace {
 constexpr double kLeastMetresAcross = 0.02;
 constexpr double kMostMetresAcross = 30.0;
 
+// The bounding-box diagonal of @p points when, read as metres, it lies outside the bounds
+// above; 0 when it lies within them or the points have no extent.
+double AcrossIfNotMetres(const Eigen::Matrix3Xd& points) {
+  const double across = geometry::BoundingBoxDiagonal(points);
+  return across > kMostMetresAcross || (across > 0 && across < kLeastMetresAcross) ? across : 0.0;
+}
+
 }  // namespace
 
 int RunMorphCommand(const MorphCommandOptions& options) {
@@ -85,8 +92,7 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   // Every length printed below reads the target as metres. A scan exported in millimetres (or
   // centimetres) against a template in metres morphs just as well, the morph being free of
   // scale, but the whole-morph check then gives every cut confidence 0 (MorphCheck::size).
-  if (const double across = geometry::BoundingBoxDiagonal(target.points);
-      across > kMostMetresAcross || (across > 0 && across < kLeastMetresAcross)) {
+  if (const double across = AcrossIfNotMetres(target.points); across > 0) {
     std::fprintf(stderr,
                  "vbutcher: morph: warning: %s is %.4g across, read as metres: is it in other "
                  "units? Every length, volume and area below assumes metres (a file in "
@@ -231,23 +237,23 @@ int RunTemplateCompile(const TemplateCompileOptions& options) {
   const geometry::TriangleMesh mesh = io::ReadMesh(options.template_path);
   const io::Annotations annotations = io::LoadAnnotations(options.annotations_path);
   io::CheckAnnotationsFit(annotations, mesh, options.annotations_path.string());
-  // The daemon's clouds are in metres, and the whole-morph check refuses a carcass more than
-  // check.max_size times the template's size (or less than check.min_size).
-  if (const double across = geometry::BoundingBoxDiagonal(mesh.V);
-      across > kMostMetresAcross || across < kLeastMetresAcross) {
-    std::fprintf(stderr,
-                 "vbutcher: template compile: warning: %s is %.4g across, read as metres: is it "
-                 "in other units? The daemon's clouds are in metres, and the morph check gives "
-                 "every cut confidence 0 when the carcass is not 0.5 to 2 times the template's "
-                 "size\n",
-                 options.template_path.string().c_str(), across);
-  }
   const std::string id = options.id.empty() ? annotations.template_name : options.id;
   morph::TemplateArtifact artifact;
   try {
     artifact = morph::CompileTemplate(mesh, annotations, id, options.version);
   } catch (const InputError& e) {
     throw InputError(options.template_path.string() + ": " + e.what());
+  }
+  // The daemon's clouds are in metres, and the whole-morph check refuses a carcass whose size
+  // is not within the profile's bounds of the template's.
+  if (const double across = AcrossIfNotMetres(mesh.V); across > 0) {
+    const morph::MorphCheckOptions& check = artifact.profile.options.check;
+    std::fprintf(stderr,
+                 "vbutcher: template compile: warning: %s is %.4g across, read as metres: is it "
+                 "in other units? The daemon's clouds are in metres, and the morph check gives "
+                 "every cut confidence 0 when the carcass is not %g to %g times the template's "
+                 "size\n",
+                 options.template_path.string().c_str(), across, check.min_size, check.max_size);
   }
   morph::SaveTemplateArtifact(options.out_path, artifact);
   morph::TemplateArtifact back;

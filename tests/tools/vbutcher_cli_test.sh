@@ -201,6 +201,49 @@ check "template info lists the stored morph profile" 0 "coarse.articulation.targ
   "$vbutcher" template info "$work/t.vbt"
 check "morph --model transfers the stored cuts" 0 "part shoulder" \
   "$vbutcher" morph --model "$work/t.vbt" --target "$work/set/target_001_cloud.ply" --out "$work/g.ply" --stage full --cuts "$work/g.json"
+# The whole-morph check's size, read back from the cuts JSON: a lamb morphed in metres is
+# about the template's size; the same template written in millimetres is warned of when
+# compiled, and its morph of a cloud in metres sends nothing (every cut confidence 0).
+/usr/bin/python3 - "$work/g.json" <<'PY' || failures=$((failures + 1))
+import json, math, sys
+check = json.load(open(sys.argv[1]))["check"]
+if not (math.isfinite(check["size"]) and 0.5 < check["size"] < 2.0):
+    sys.exit(f"FAIL: cuts JSON check.size {check['size']} is not near 1")
+PY
+/usr/bin/python3 - "$work/set/template.ply" "$work/template_mm.ply" <<'PY' || failures=$((failures + 1))
+import struct, sys
+data = open(sys.argv[1], "rb").read()
+end = data.index(b"end_header\n") + len(b"end_header\n")
+header = data[:end].decode()
+assert "format binary_little_endian" in header, "FAIL: the template is not binary PLY"
+props = [l.split()[-1] for l in header.split("element vertex")[1].split("element")[0].splitlines()
+         if l.startswith("property")]
+assert all(l.split()[1] == "double" for l in header.splitlines()
+           if l.startswith("property") and "list" not in l), "FAIL: not doubles"
+count = int(header.split("element vertex")[1].split()[0])
+stride = 8 * len(props)
+out = bytearray(data[:end])
+for i in range(count):
+    v = list(struct.unpack_from(f"<{len(props)}d", data, end + stride * i))
+    for k, name in enumerate(props):
+        if name in ("x", "y", "z"):
+            v[k] *= 1000.0
+    out += struct.pack(f"<{len(props)}d", *v)
+out += data[end + stride * count:]
+open(sys.argv[2], "wb").write(out)
+PY
+check "template compile warns of a template in millimetres" 0 \
+  "template_mm.ply is 1[0-9]* across, read as metres: is it in other units?" \
+  "$vbutcher" template compile --template "$work/template_mm.ply" --annotations "$work/set/template_annotations.yaml" -o "$work/mm.vbt"
+check "a morph 1000 times smaller than its template is not trusted" 0 \
+  "confidence 0.00: the morph is 0.00[0-9]* times the template's size" \
+  "$vbutcher" morph --model "$work/mm.vbt" --target "$work/set/target_001_cloud.ply" --out "$work/mm.ply" --stage full --cuts "$work/mm.json"
+/usr/bin/python3 - "$work/mm.json" <<'PY' || failures=$((failures + 1))
+import json, sys
+report = json.load(open(sys.argv[1]))
+if report["check"]["confidence"] != 0 or any(c["confidence"] != 0 for c in report["cuts"]):
+    sys.exit("FAIL: a morph in other units left a cut with confidence above 0")
+PY
 head -c 2000 "$work/t.vbt" >"$work/cut.vbt"
 check "a truncated model is refused, naming the file" 2 "cut.vbt: checksum mismatch" "$vbutcher" template info "$work/cut.vbt"
 check "morph refuses a truncated model" 2 "cut.vbt" \
