@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <memory>
+#include <numbers>
 
 #include "geometry/mesh_measures.h"
 #include "morph/cloud_noise.h"
@@ -121,6 +123,20 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     info->mean_plane_distance += std::abs(normals.col(j).dot(posed.V.col(i) - plane_point));
     return ConstrainPoint(model.vertex_weights, i, model.V.col(i), plane_point, normals.col(j));
   };
+  // Whether template vertex i lies too far along target point j's plane for the plane to
+  // say where it belongs (max_tangent_reach).
+  const double plane_radius =
+      estimate.density > 0
+          ? std::sqrt(result.surface_neighbours / (std::numbers::pi * estimate.density))
+          : std::numeric_limits<double>::infinity();
+  const double max_tangent_offset = options.max_tangent_reach > 0
+                                        ? options.max_tangent_reach * plane_radius
+                                        : std::numeric_limits<double>::infinity();
+  const auto beyond_reach = [&](int i, int j) {
+    const Eigen::Vector3d offset = posed.V.col(i) - points.col(j);
+    const Eigen::Vector3d n = normals.col(j);
+    return (offset - n.dot(offset) * n).squaredNorm() > max_tangent_offset * max_tangent_offset;
+  };
   // Eq. (12) on pairs (template vertex, target point): which of them to keep.
   const auto filter = [&](const std::vector<int>& vertices, const std::vector<int>& targets) {
     Eigen::Matrix3Xd a1(3, static_cast<Eigen::Index>(vertices.size()));
@@ -166,6 +182,11 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     std::vector<PointConstraint> constraints;
     for (int k = 0; k < pairs.size(); ++k) {
       if (!kept[static_cast<std::size_t>(k)]) continue;
+      if (beyond_reach(pairs.source[static_cast<std::size_t>(k)],
+                       pairs.target[static_cast<std::size_t>(k)])) {
+        ++info.beyond_reach;
+        continue;
+      }
       constraints.push_back(plane_constraint(pairs.source[static_cast<std::size_t>(k)],
                                              pairs.target[static_cast<std::size_t>(k)], &info));
     }

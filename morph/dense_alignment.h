@@ -5,8 +5,8 @@
 #include <vector>
 
 #include "geometry/triangle_mesh.h"
-#include "morph/coarse_alignment.h"
 #include "morph/association_filter.h"
+#include "morph/coarse_alignment.h"
 #include "morph/dense_association.h"
 #include "morph/embedded_deformation.h"
 #include "morph/template_model.h"
@@ -69,6 +69,14 @@ struct DenseOptions {
   /// target's points make every part of the target pull, including ends the template falls
   /// short of.
   int reverse_samples = 2000;
+  /// A template vertex's pair is dropped when the vertex lies farther along its target
+  /// point's plane than this many plane-point radii from the point, a radius being
+  /// sqrt(k / (pi density)) for the k points a plane point averages (DenseResult::
+  /// surface_neighbours). So far out the plane is extrapolated over what the target does not
+  /// show: a vertex over a camera shadow or a hole pairs with a point on its rim, and the
+  /// rim's plane would pull it flat across. The target's own pairs (reverse_samples) are
+  /// kept. 0: off.
+  double max_tangent_reach = 3.0;
   DenseAssociationOptions association;
   AssociationFilterOptions filter;
   /// Rounds of association -> filtering -> deformation, each from the previous result.
@@ -97,6 +105,9 @@ struct DenseRound {
   int kept = 0;                ///< left after eq. (12)
   int reverse_associated = 0;  ///< target points paired back to the template
   int reverse_kept = 0;        ///< of those, left after eq. (12)
+  /// Of the template's pairs kept by eq. (12), those dropped as too far along the target's
+  /// plane (DenseOptions::max_tangent_reach); `kept` does not count them.
+  int beyond_reach = 0;
   /// Of the kept pairs, both ways, before the solve; template sizes.
   double mean_plane_distance = 0.0;
   SolveSummary deformation;
@@ -109,15 +120,15 @@ struct DenseRound {
 struct DenseResult {
   bool ok = false;
   std::string error;
-  geometry::TriangleMesh mesh;            ///< morphed template in the target's frame (template faces)
-  DeformationState state;           ///< normalised template frame
+  geometry::TriangleMesh mesh;  ///< morphed template in the target's frame (template faces)
+  DeformationState state;       ///< normalised template frame
   /// The target points the stage used, target frame: every stride-th (see thin_to_noise),
   /// so that what comes after (check, cut transfer) reads the cloud the way the stage did.
   Eigen::Matrix3Xd target;
   Eigen::Matrix3Xd target_normals;  ///< unit, of those points; given or estimated
   std::vector<DenseRound> rounds;
-  double noise = 0.0;          ///< estimated sensor noise (standard deviation), template sizes
-  double noise_m = 0.0;        ///< the same in the target's units (metres): noise x the morph's scale
+  double noise = 0.0;    ///< estimated sensor noise (standard deviation), template sizes
+  double noise_m = 0.0;  ///< the same in the target's units (metres): noise x the morph's scale
   /// Target points per square metre (target units), as the stage used them (every
   /// stride-th): NoiseEstimate::density over the morph's scale squared.
   double density_m2 = 0.0;

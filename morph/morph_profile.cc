@@ -83,6 +83,7 @@ const std::array kKeys = {
     VB_PROFILE_KEY(dense.noise_neighbours, kCount, 12, 500, false, "neighbours of a noise reading"),
     VB_PROFILE_KEY(dense.noise_radius, kSize, 0.001, 0.3, false, "reach of a noise reading"),
     VB_PROFILE_KEY(dense.noise_reference, kNoise, 1e-5, 0.1, false, "noise at which the data weight halves"),
+    VB_PROFILE_KEY(dense.max_tangent_reach, "plane radii", 0.0, 100.0, false, "template pairs farther along the target's plane dropped (0: off)"),
     VB_PROFILE_KEY(dense.association.candidates, kCount, 1, 200, false, "eq. 11: target points searched"),
     VB_PROFILE_KEY(dense.association.lambda, "weight / size", 0.0, 1e4, false, "eq. 11: lambda"),
     VB_PROFILE_KEY(dense.association.max_distance, kSize, 0.0, 1.0, false, "eq. 11: longer pairs dropped"),
