@@ -76,9 +76,10 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   const double relative_surface_noise = noise / options.surface_noise;
   result.noise = noise;
   result.noise_m = noise * to_target.scale;
-  result.density_m2 =
-      (options.thin_to_noise ? estimate.density : estimate.density * estimate.stride) /
-      (to_target.scale * to_target.scale);
+  // Points per unit area of `points` as used (template sizes).
+  const double density =
+      options.thin_to_noise ? estimate.density : estimate.density * estimate.stride;
+  result.density_m2 = density / (to_target.scale * to_target.scale);
 
   // Estimated normals average over more points as the noise grows, as the plane points
   // below do.
@@ -126,9 +127,8 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   // Whether template vertex i lies too far along target point j's plane for the plane to
   // say where it belongs (max_tangent_reach).
   const double plane_radius =
-      estimate.density > 0
-          ? std::sqrt(result.surface_neighbours / (std::numbers::pi * estimate.density))
-          : std::numeric_limits<double>::infinity();
+      density > 0 ? std::sqrt(result.surface_neighbours / (std::numbers::pi * density))
+                  : std::numeric_limits<double>::infinity();
   const double max_tangent_offset = options.max_tangent_reach > 0
                                         ? options.max_tangent_reach * plane_radius
                                         : std::numeric_limits<double>::infinity();
@@ -190,7 +190,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
       constraints.push_back(plane_constraint(pairs.source[static_cast<std::size_t>(k)],
                                              pairs.target[static_cast<std::size_t>(k)], &info));
     }
-    info.kept = static_cast<int>(constraints.size());
+    info.kept = static_cast<int>(constraints.size()) + info.beyond_reach;
 
     if (ways == 2) {
       info.reverse_associated = back.size();

@@ -72,10 +72,13 @@ struct DenseOptions {
   /// A template vertex's pair is dropped when the vertex lies farther along its target
   /// point's plane than this many plane-point radii from the point, a radius being
   /// sqrt(k / (pi density)) for the k points a plane point averages (DenseResult::
-  /// surface_neighbours). So far out the plane is extrapolated over what the target does not
-  /// show: a vertex over a camera shadow or a hole pairs with a point on its rim, and the
-  /// rim's plane would pull it flat across. The target's own pairs (reverse_samples) are
-  /// kept. 0: off.
+  /// surface_neighbours) and the density of the target points as used (NoiseEstimate::
+  /// density, template sizes; every stride-th point). That is the radius of k points' patch
+  /// at the cloud's density; surface_radius, which caps the patch on sparse clouds, does not
+  /// enter, and the radius widens as a noisier cloud's k grows. So far out the plane is
+  /// extrapolated over what the target does not show: a vertex over a camera shadow or a hole pairs
+  /// with a point on its rim, and the rim's plane would pull it flat across. The target's own pairs
+  /// (reverse_samples) are kept. 0: off.
   double max_tangent_reach = 3.0;
   DenseAssociationOptions association;
   AssociationFilterOptions filter;
@@ -105,8 +108,8 @@ struct DenseRound {
   int kept = 0;                ///< left after eq. (12)
   int reverse_associated = 0;  ///< target points paired back to the template
   int reverse_kept = 0;        ///< of those, left after eq. (12)
-  /// Of the template's pairs kept by eq. (12), those dropped as too far along the target's
-  /// plane (DenseOptions::max_tangent_reach); `kept` does not count them.
+  /// Of the template's pairs kept by eq. (12), those then dropped as too far along the
+  /// target's plane (DenseOptions::max_tangent_reach): kept - beyond_reach make constraints.
   int beyond_reach = 0;
   /// Of the kept pairs, both ways, before the solve; template sizes.
   double mean_plane_distance = 0.0;

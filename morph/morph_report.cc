@@ -79,6 +79,7 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
     for (const DenseRound& round : dense->rounds) {
       rounds.push_back({{"associated", round.associated},
                         {"kept_after_filter", round.kept},
+                        {"beyond_reach", round.beyond_reach},
                         {"reverse_associated", round.reverse_associated},
                         {"reverse_kept_after_filter", round.reverse_kept},
                         {"mean_plane_distance_rel", round.mean_plane_distance},

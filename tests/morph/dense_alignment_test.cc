@@ -472,7 +472,7 @@ TEST_F(DenseAlignmentTest, TheTemplateIsNotPulledIntoWhatTheCloudDoesNotShow) {
                   static_cast<unsigned long long>(seed), limited ? "limited" : "unlimited", dropped,
                   dense.rounds.back().beyond_reach, dense.rounds.back().kept);
       if (limited) {
-        EXPECT_GT(dropped, 0) << "seed " << seed;
+        EXPECT_GE(dropped, 12) << "seed " << seed;
       } else {
         EXPECT_EQ(dropped, 0) << "seed " << seed;
       }
@@ -485,8 +485,8 @@ TEST_F(DenseAlignmentTest, TheTemplateIsNotPulledIntoWhatTheCloudDoesNotShow) {
   hole_error[1] /= over_holes;
   std::printf("over holes %.2f -> %.2f mm, all %.2f -> %.2f mm\n", 1000 * hole_error[0],
               1000 * hole_error[1], 1000 * error[0] / 3, 1000 * error[1] / 3);
-  // Measured: 10.6 -> 9.1 mm over the holes (x0.86) of 5.10 -> 5.04 mm over all vertices; a
-  // few dozen pairs a morph are dropped.
+  // Measured: 10.6 -> 9.1 mm over the holes (x0.86) and 5.10 -> 5.04 mm over all vertices; 18
+  // to 34 pairs a morph are dropped.
   EXPECT_LT(hole_error[1], 0.92 * hole_error[0]);
   EXPECT_LT(hole_error[1], 0.010);
   EXPECT_LT(error[1], error[0]);
