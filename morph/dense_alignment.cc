@@ -182,15 +182,15 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     std::vector<PointConstraint> constraints;
     for (int k = 0; k < pairs.size(); ++k) {
       if (!kept[static_cast<std::size_t>(k)]) continue;
-      if (beyond_reach(pairs.source[static_cast<std::size_t>(k)],
-                       pairs.target[static_cast<std::size_t>(k)])) {
+      ++info.kept;
+      const int i = pairs.source[static_cast<std::size_t>(k)];
+      const int j = pairs.target[static_cast<std::size_t>(k)];
+      if (beyond_reach(i, j)) {
         ++info.beyond_reach;
         continue;
       }
-      constraints.push_back(plane_constraint(pairs.source[static_cast<std::size_t>(k)],
-                                             pairs.target[static_cast<std::size_t>(k)], &info));
+      constraints.push_back(plane_constraint(i, j, &info));
     }
-    info.kept = static_cast<int>(constraints.size()) + info.beyond_reach;
 
     if (ways == 2) {
       info.reverse_associated = back.size();

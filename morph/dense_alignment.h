@@ -70,15 +70,14 @@ struct DenseOptions {
   /// short of.
   int reverse_samples = 2000;
   /// A template vertex's pair is dropped when the vertex lies farther along its target
-  /// point's plane than this many plane-point radii from the point, a radius being
-  /// sqrt(k / (pi density)) for the k points a plane point averages (DenseResult::
-  /// surface_neighbours) and the density of the target points as used (NoiseEstimate::
-  /// density, template sizes; every stride-th point). That is the radius of k points' patch
-  /// at the cloud's density; surface_radius, which caps the patch on sparse clouds, does not
-  /// enter, and the radius widens as a noisier cloud's k grows. So far out the plane is
-  /// extrapolated over what the target does not show: a vertex over a camera shadow or a hole pairs
-  /// with a point on its rim, and the rim's plane would pull it flat across. The target's own pairs
-  /// (reverse_samples) are kept. 0: off.
+  /// point's plane than this many plane-point radii from the point. A radius is
+  /// sqrt(k / (pi density)): k the points a plane point averages (DenseResult::
+  /// surface_neighbours, which grows with the noise), density that of the target points as
+  /// used (NoiseEstimate::density, template sizes, every stride-th point); surface_radius,
+  /// which caps the patch on sparse clouds, does not enter. So far out the plane is
+  /// extrapolated over what the target does not show: a vertex over a camera shadow or a hole
+  /// pairs with a point on its rim, whose plane would pull it flat across. The target's own
+  /// pairs (reverse_samples) are not limited so. 0: off.
   double max_tangent_reach = 3.0;
   DenseAssociationOptions association;
   AssociationFilterOptions filter;
