@@ -30,6 +30,10 @@ struct TopologyReport {
   bool is_consistently_oriented() const {
     return inconsistent_edges == 0 && nonmanifold_edges == 0;
   }
+  /// What a template must be: one closed, consistently oriented 2-manifold.
+  bool is_single_closed_surface() const {
+    return is_closed_manifold() && is_consistently_oriented() && components == 1;
+  }
   /// One line naming every defect, for error messages.
   std::string Describe() const;
 };

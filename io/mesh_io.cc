@@ -82,23 +82,43 @@ geometry::TriangleMesh ReadMesh(const std::filesystem::path& path, const ReadLim
   return mesh;
 }
 
+geometry::TriangleMesh ReadMeshOrCloud(const std::filesystem::path& path, const ReadLimits& limits,
+                                       std::vector<std::string>* warnings) {
+  geometry::TriangleMesh mesh;
+  switch (FormatFromPath(path)) {
+    case FileFormat::kPly:
+      mesh = ReadPly(path, limits);
+      break;
+    case FileFormat::kOff:
+      mesh = ReadOff(path, limits);
+      break;
+    case FileFormat::kObj:
+      mesh = ReadObj(path, limits);
+      break;
+    case FileFormat::kPcd: {
+      geometry::PointCloud cloud = ReadPcd(path, limits);
+      mesh.V = std::move(cloud.points);
+      mesh.N = std::move(cloud.normals);
+      break;
+    }
+    case FileFormat::kXyz: {
+      geometry::PointCloud cloud = ReadXyz(path, limits);
+      mesh.V = std::move(cloud.points);
+      mesh.N = std::move(cloud.normals);
+      break;
+    }
+  }
+  if (mesh.num_vertices() == 0) throw InputError(path.string() + ": holds no points");
+  Report(DropInvalidNormals(path.string(), &mesh.N), warnings);
+  return mesh;
+}
+
 geometry::PointCloud ReadCloud(const std::filesystem::path& path, const ReadLimits& limits,
                                std::vector<std::string>* warnings) {
+  geometry::TriangleMesh mesh = ReadMeshOrCloud(path, limits, warnings);
   geometry::PointCloud cloud;
-  const FileFormat format = FormatFromPath(path);
-  if (format == FileFormat::kPcd) {
-    cloud = ReadPcd(path, limits);
-  } else if (format == FileFormat::kXyz) {
-    cloud = ReadXyz(path, limits);
-  } else {
-    geometry::TriangleMesh mesh = format == FileFormat::kPly   ? ReadPly(path, limits)
-                                  : format == FileFormat::kOff ? ReadOff(path, limits)
-                                                               : ReadObj(path, limits);
-    cloud.points = std::move(mesh.V);
-    cloud.normals = std::move(mesh.N);
-  }
-  if (cloud.size() == 0) throw InputError(path.string() + ": holds no points");
-  Report(DropInvalidNormals(path.string(), &cloud.normals), warnings);
+  cloud.points = std::move(mesh.V);
+  cloud.normals = std::move(mesh.N);
   return cloud;
 }
 

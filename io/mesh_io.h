@@ -32,6 +32,14 @@ geometry::TriangleMesh ReadMesh(const std::filesystem::path& path,
                                 const ReadLimits& limits = DefaultReadLimits(),
                                 std::vector<std::string>* warnings = nullptr);
 
+/// Reads a mesh or a point cloud from any supported format: a cloud (PCD, XYZ, or a PLY, OFF or
+/// OBJ without faces) comes back as vertices with no faces. Normals pass DropInvalidNormals,
+/// as ReadMesh.
+/// @throws InputError as ReadMesh, or when the file holds no points.
+geometry::TriangleMesh ReadMeshOrCloud(const std::filesystem::path& path,
+                                       const ReadLimits& limits = DefaultReadLimits(),
+                                       std::vector<std::string>* warnings = nullptr);
+
 /// Reads a point cloud from any supported format; a mesh's vertices become the points. Its
 /// normals pass DropInvalidNormals, as ReadMesh.
 /// @throws InputError as ReadMesh, or when the cloud is empty.

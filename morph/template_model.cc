@@ -24,8 +24,7 @@ TemplateModel BuildTemplateModel(const geometry::TriangleMesh& mesh,
     throw InputError("template: too small to be a closed mesh");
   if (!mesh.V.allFinite()) throw InputError("template: non-finite vertex coordinates");
   const geometry::TopologyReport topology = geometry::AnalyzeTopology(mesh);
-  if (!topology.is_closed_manifold() || !topology.is_consistently_oriented() ||
-      topology.components != 1) {
+  if (!topology.is_single_closed_surface()) {
     throw InputError("template: must be one closed, consistently oriented 2-manifold; it has " +
                      topology.Describe());
   }

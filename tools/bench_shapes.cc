@@ -13,6 +13,7 @@
 #include <map>
 #include <numbers>
 #include <random>
+#include <stdexcept>
 
 #include <spawn.h>
 #include <sys/wait.h>
@@ -21,6 +22,7 @@
 #include "io/error.h"
 #include "io/mesh_io.h"
 #include "geometry/mesh_measures.h"
+#include "geometry/surface_sampling.h"
 #include "morph/coarse_alignment.h"
 #include "morph/dense_alignment.h"
 #include "morph/feature_association.h"
@@ -99,39 +101,6 @@ Eigen::Isometry3d RandomPlacement(Random* random) {
   const double z = random->Uniform() - 0.5;
   X.translation() = Eigen::Vector3d(x, y, z);
   return X;
-}
-
-// @p count points drawn uniformly over the area of @p surface (degenerate faces have none),
-// each with its face's unit normal.
-void SampleSurface(const geometry::TriangleMesh& surface, int count, Random* random,
-                   Eigen::Matrix3Xd* points, Eigen::Matrix3Xd* normals) {
-  std::vector<double> cumulative(static_cast<std::size_t>(surface.num_faces()));
-  double total = 0;
-  for (int f = 0; f < surface.num_faces(); ++f) {
-    const Eigen::Vector3d a = surface.V.col(surface.F(0, f));
-    total += 0.5 * (surface.V.col(surface.F(1, f)) - a).cross(surface.V.col(surface.F(2, f)) - a).norm();
-    cumulative[static_cast<std::size_t>(f)] = total;
-  }
-  if (!(total > 0)) throw InputError("bench shapes: a target surface has no area");
-  points->resize(3, count);
-  normals->resize(3, count);
-  for (int i = 0; i < count; ++i) {
-    const double at = random->Uniform() * total;
-    const auto f = static_cast<int>(std::min<std::ptrdiff_t>(
-        std::upper_bound(cumulative.begin(), cumulative.end(), at) - cumulative.begin(),
-        surface.num_faces() - 1));
-    double u = random->Uniform();
-    double v = random->Uniform();
-    if (u + v > 1) {
-      u = 1 - u;
-      v = 1 - v;
-    }
-    const Eigen::Vector3d a = surface.V.col(surface.F(0, f));
-    const Eigen::Vector3d b = surface.V.col(surface.F(1, f));
-    const Eigen::Vector3d c = surface.V.col(surface.F(2, f));
-    points->col(i) = a + u * (b - a) + v * (c - a);
-    normals->col(i) = (b - a).cross(c - a).normalized();
-  }
 }
 
 // The camera-shadow variant: of the points whose normal faces away from a random view
@@ -405,7 +374,12 @@ int RunShapeBench(const ShapeBenchOptions& options) {
       geometry::TriangleMesh placed = truth_mesh;
       placed.V = X * truth_mesh.V;
       Eigen::Matrix3Xd clean_points, normals;
-      SampleSurface(c.scanned[t], options.points, &sample_random, &clean_points, &normals);
+      try {
+        geometry::SampleSurface(c.scanned[t], options.points, [&] { return sample_random.Uniform(); },
+                                &clean_points, &normals);
+      } catch (const std::invalid_argument& e) {
+        throw InputError("bench shapes: " + c.name + " " + target.pair + ": " + e.what());
+      }
       clean_points = (X * clean_points).eval();
       normals = (X.linear() * normals).eval();
       const std::vector<int> unshadowed = ShadowBand(clean_points, normals, options.shadow_fraction, &shadow_random);

@@ -4,10 +4,15 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <limits>
 #include <numbers>
+#include <random>
+#include <stdexcept>
 #include <vector>
 
 #include "geometry/mesh_measures.h"
+#include "geometry/mesh_topology.h"
+#include "geometry/surface_sampling.h"
 #include "io/annotations.h"
 #include "io/error.h"
 #include "io/mesh_io.h"
@@ -19,6 +24,7 @@
 #include "morph/surface_distance.h"
 #include "morph/template_artifact.h"
 #include "morph/template_model.h"
+#include "tools/shape_set/surface_wrap.h"
 
 namespace vb::tools {
 namespace {
@@ -33,6 +39,78 @@ constexpr double kMostMetresAcross = 30.0;
 double AcrossIfNotMetres(const Eigen::Matrix3Xd& points) {
   const double across = geometry::BoundingBoxDiagonal(points);
   return across > kMostMetresAcross || (across > 0 && across < kLeastMetresAcross) ? across : 0.0;
+}
+
+// @p error from building a template of @p mesh, read from @p path, as the command's error: the
+// file named, and for a mesh that is not one closed surface how to make one around it.
+[[noreturn]] void ThrowTemplateError(const std::filesystem::path& path,
+                                     const geometry::TriangleMesh& mesh, const InputError& error) {
+  std::string message = path.string() + ": " + error.what();
+  if (!geometry::AnalyzeTopology(mesh).is_single_closed_surface()) {
+    message += "; `vbutcher template wrap --mesh " + path.string() +
+               " -o closed.ply` makes one closed surface around it";
+  }
+  throw InputError(message);
+}
+
+// How unevenly a mesh's vertices cover its surface: the 90th over the 10th percentile of each
+// vertex's area (a third of its faces'); vertices no face uses are left out. Evenly meshed
+// surfaces measure 1.7 (the synthetic lambs) to 3.2 (the shape benchmark's posed templates);
+// modelled bodies 11 (sydney) to 165 (spiderblob) (docs/decisions.md).
+double VertexAreaSpread(const geometry::TriangleMesh& mesh) {
+  std::vector<double> area(static_cast<std::size_t>(mesh.num_vertices()), 0.0);
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = mesh.V.col(mesh.F(0, f));
+    const double third =
+        (mesh.V.col(mesh.F(1, f)) - a).cross(mesh.V.col(mesh.F(2, f)) - a).norm() / 6.0;
+    for (int k = 0; k < 3; ++k) area[static_cast<std::size_t>(mesh.F(k, f))] += third;
+  }
+  std::erase_if(area, [](double x) { return !(x > 0); });
+  if (area.size() < 10) return std::numeric_limits<double>::infinity();
+  std::sort(area.begin(), area.end());
+  return area[area.size() * 9 / 10] / area[area.size() / 10];
+}
+
+// A mesh whose vertex areas spread more than this is read as its surface, not its vertices:
+// about the geometric middle of 3.2 and 11.
+constexpr double kMostVertexAreaSpread = 6.0;
+// Points drawn over such a surface: at least as many as the shape benchmark draws per target
+// (a lamb rig cloud has about 18,000).
+constexpr int kLeastSurfaceSamples = 20000;
+
+// The target at @p path as the morph reads it. A cloud, or a mesh whose vertices cover it
+// evenly: its points (and normals) as they are. A mesh meshed unevenly (a modelled body: few
+// vertices on large faces, many on small details): its vertices would over-weight the details
+// and leave the large faces empty, so its surface is sampled uniformly over its area,
+// max(its vertices, kLeastSurfaceSamples) points, without normals (they are estimated, facing
+// as the template does, whatever the mesh's winding). An even mesh keeps its vertices: sampling
+// a noisy one between its vertices would make its noise correlated over each face (measured:
+// the lamb's noisy meshes at sigma 4 mm morph 18 % worse sampled; docs/decisions.md).
+geometry::PointCloud ReadTarget(const std::filesystem::path& path) {
+  geometry::TriangleMesh read = io::ReadMeshOrCloud(path);
+  geometry::PointCloud target;
+  const double spread = read.num_faces() > 0 ? VertexAreaSpread(read) : 0.0;
+  if (spread <= kMostVertexAreaSpread) {
+    target.points = std::move(read.V);
+    target.normals = std::move(read.N);
+    return target;
+  }
+  const int count = std::max(read.num_vertices(), kLeastSurfaceSamples);
+  std::mt19937_64 engine(1);  // the same points on every run
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  Eigen::Matrix3Xd face_normals;
+  try {
+    geometry::SampleSurface(
+        read, count, [&] { return unit(engine); }, &target.points, &face_normals);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(path.string() + ": " + e.what() + " (every face is degenerate)");
+  }
+  std::fprintf(stderr,
+               "morph: target: %s is meshed unevenly (vertex areas spread %.3g times, over %g): "
+               "its surface is sampled at %d points, uniformly over its area, normals "
+               "estimated\n",
+               path.string().c_str(), spread, kMostVertexAreaSpread, count);
+  return target;
 }
 
 }  // namespace
@@ -85,10 +163,10 @@ int RunMorphCommand(const MorphCommandOptions& options) {
     try {
       model = morph::BuildTemplateModel(mesh);
     } catch (const InputError& e) {
-      throw InputError(options.template_path.string() + ": " + e.what());
+      ThrowTemplateError(options.template_path, mesh, e);
     }
   }
-  const geometry::PointCloud target = io::ReadCloud(options.target_path);
+  const geometry::PointCloud target = ReadTarget(options.target_path);
   // Every length printed below reads the target as metres. A scan exported in millimetres (or
   // centimetres) against a template in metres morphs just as well, the morph being free of
   // scale, but the whole-morph check then gives every cut confidence 0 (MorphCheck::size).
@@ -242,7 +320,7 @@ int RunTemplateCompile(const TemplateCompileOptions& options) {
   try {
     artifact = morph::CompileTemplate(mesh, annotations, id, options.version);
   } catch (const InputError& e) {
-    throw InputError(options.template_path.string() + ": " + e.what());
+    ThrowTemplateError(options.template_path, mesh, e);
   }
   // The daemon's clouds are in metres, and the whole-morph check refuses a carcass whose size
   // is not within the profile's bounds of the template's.
@@ -262,6 +340,61 @@ int RunTemplateCompile(const TemplateCompileOptions& options) {
   std::printf("compiled in %.2f s; %s: %ju bytes, loads in %.3f s\n", artifact.model.seconds,
               options.out_path.c_str(),
               static_cast<std::uintmax_t>(std::filesystem::file_size(options.out_path)), load_s);
+  return 0;
+}
+
+int RunTemplateWrap(const TemplateWrapOptions& options) {
+  const geometry::TriangleMesh input = io::ReadMesh(options.mesh_path);
+  const std::string name = options.mesh_path.string();
+  const auto start = std::chrono::steady_clock::now();
+  geometry::TriangleMesh wrap;
+  try {
+    wrap = WrapSurface(input, {.alpha = options.alpha, .offset = options.offset});
+  } catch (const InputError& e) {
+    throw InputError(name + ": " + e.what());
+  }
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double diagonal = geometry::BoundingBoxDiagonal(input.V);
+  std::printf("%s: %s\n", name.c_str(), geometry::AnalyzeTopology(input).Describe().c_str());
+  std::printf(
+      "wrap: alpha %.4g, offset %.4g (in the mesh's units), %.2f s: %d vertices, %d faces\n",
+      options.alpha * diagonal, options.offset * diagonal, seconds, wrap.num_vertices(),
+      wrap.num_faces());
+  // How far the input's surface lies inside the wrap: each vertex a face uses, to the wrap.
+  std::vector<bool> used(static_cast<std::size_t>(input.num_vertices()), false);
+  for (int f = 0; f < input.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) used[static_cast<std::size_t>(input.F(k, f))] = true;
+  std::vector<Eigen::Index> columns;
+  for (std::size_t i = 0; i < used.size(); ++i)
+    if (used[i]) columns.push_back(static_cast<Eigen::Index>(i));
+  const Eigen::Matrix3Xd vertices = input.V(Eigen::all, columns);
+  std::vector<double> gaps;
+  for (const SurfaceAnchor& anchor : AnchorOnSurface(vertices, wrap))
+    gaps.push_back(anchor.offset.norm());
+  std::sort(gaps.begin(), gaps.end());
+  double mean = 0.0;
+  for (double gap : gaps) mean += gap / static_cast<double>(gaps.size());
+  const double p95 = gaps[std::min(gaps.size() - 1, gaps.size() * 95 / 100)];
+  std::printf(
+      "the input's vertices lie %.4g from the wrap on average, 95 %% within %.4g, at most "
+      "%.4g (%.2f %%, %.2f %%, %.2f %% of its diagonal)\n",
+      mean, p95, gaps.back(), 100 * mean / diagonal, 100 * p95 / diagonal,
+      100 * gaps.back() / diagonal);
+  const geometry::TopologyReport topology = geometry::AnalyzeTopology(wrap);
+  if (!topology.is_single_closed_surface()) {
+    std::fprintf(stderr,
+                 "vbutcher: template wrap: %s: the wrap is not one closed surface (%s): pieces "
+                 "farther apart than alpha stay apart; a larger --alpha bridges them. Nothing "
+                 "written\n",
+                 name.c_str(), topology.Describe().c_str());
+    return 3;
+  }
+  io::WriteMesh(options.out_path, wrap);
+  std::printf(
+      "wrote %s: one closed surface; annotate this mesh, then `vbutcher template "
+      "compile` it\n",
+      options.out_path.c_str());
   return 0;
 }
 

@@ -41,6 +41,19 @@ struct TemplateCompileOptions {
 /// annotations in one checksummed file; prints what it holds and how fast it loads back.
 int RunTemplateCompile(const TemplateCompileOptions& options);
 
+struct TemplateWrapOptions {
+  std::filesystem::path mesh_path;
+  std::filesystem::path out_path;
+  double alpha = 0.01;    ///< fraction of the input's bounding-box diagonal (WrapOptions)
+  double offset = 0.0014;  ///< likewise
+};
+/// `vbutcher template wrap`: one closed, outward-oriented 2-manifold around any mesh (open,
+/// several pieces, self-intersecting), by CGAL's 3D alpha wrapping, in the input's units.
+/// Prints the input's defects, the wrap's size and how far the input's vertices lie from it.
+/// Returns 0 when the wrap is one closed surface (written to out_path), 3 when it is not (gaps
+/// wider than alpha leave pieces apart; nothing written).
+int RunTemplateWrap(const TemplateWrapOptions& options);
+
 /// `vbutcher template info`: loads a compiled template (verifying it) and describes it.
 int RunTemplateInfo(const std::filesystem::path& path);
 

@@ -123,6 +123,22 @@ int main(int argc, char** argv) {
   compile_cmd->add_option("--version", compile.version, "Template version")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  vb::tools::TemplateWrapOptions wrap;
+  CLI::App* wrap_cmd = template_cmd->add_subcommand(
+      "wrap", "One closed surface around any mesh (open, in pieces), to make a template of");
+  wrap_cmd->add_option("--mesh", wrap.mesh_path, "Mesh to wrap (.ply, .off, .obj)")->required();
+  wrap_cmd->add_option("-o,--out", wrap.out_path, "Closed surface (.ply, .off, .obj)")->required();
+  wrap_cmd
+      ->add_option("--alpha", wrap.alpha,
+                   "Gaps narrower than this are bridged, finer detail smoothed; fraction of the "
+                   "mesh's bounding-box diagonal (smaller: slower, more vertices)")
+      ->check(CLI::Range(0.002, 0.5))
+      ->capture_default_str();
+  wrap_cmd
+      ->add_option("--offset", wrap.offset,
+                   "How far outside the mesh the wrap lies; fraction of the diagonal")
+      ->check(CLI::Range(1e-5, 0.1))
+      ->capture_default_str();
   std::filesystem::path info_path;
   CLI::App* info_cmd =
       template_cmd->add_subcommand("info", "Verify and describe a compiled template");
@@ -468,6 +484,7 @@ int main(int argc, char** argv) {
     if (morph_cmd->parsed()) return vb::tools::RunMorphCommand(morph);
     if (compile_cmd->parsed()) return vb::tools::RunTemplateCompile(compile);
     if (info_cmd->parsed()) return vb::tools::RunTemplateInfo(info_path);
+    if (wrap_cmd->parsed()) return vb::tools::RunTemplateWrap(wrap);
     if (capture_bench_cmd->parsed()) return vb::tools::RunCaptureBench(capture_bench);
     if (shape_bench_cmd->parsed()) return vb::tools::RunShapeBench(shape_bench);
     if (input_bench_cmd->parsed()) return vb::tools::RunInputBench(input_bench);

@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
-#include "io/error.h"
 #include "geometry/mesh_measures.h"
+#include "io/error.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/test_meshes.h"
 
@@ -103,7 +103,8 @@ TEST_P(InvalidNormalsTest, AreDroppedWithAWarningNamingTheFile) {
     EXPECT_FALSE(back.has_normals());
     ASSERT_EQ(warnings.size(), 1u);
     EXPECT_NE(warnings[0].find((dir / GetParam()).string()), std::string::npos) << warnings[0];
-    EXPECT_NE(warnings[0].find("1 of " + std::to_string(cloud.size()) + " normals"), std::string::npos)
+    EXPECT_NE(warnings[0].find("1 of " + std::to_string(cloud.size()) + " normals"),
+              std::string::npos)
         << warnings[0];
   }
 }
@@ -141,6 +142,24 @@ TEST(MeshIoTest, ReadCloudAcceptsMeshFiles) {
   const geometry::TriangleMesh mesh = test::Box();
   WriteMesh(dir / "box.off", mesh);
   EXPECT_EQ(ReadCloud(dir / "box.off").points, mesh.V);
+}
+
+TEST(MeshIoTest, ReadMeshOrCloudKeepsAMeshsFacesAndReadsACloudWithout) {
+  test::TempDir dir;
+  const geometry::TriangleMesh mesh = test::Box();
+  WriteMesh(dir / "box.ply", mesh);
+  const geometry::TriangleMesh back = ReadMeshOrCloud(dir / "box.ply");
+  EXPECT_EQ(back.V, mesh.V);
+  EXPECT_EQ(back.F, mesh.F);
+  geometry::PointCloud cloud;
+  cloud.points = mesh.V;
+  for (const char* name : {"box_cloud.ply", "box.xyz", "box.pcd"}) {
+    WriteCloud(dir / name, cloud);
+    const geometry::TriangleMesh points = ReadMeshOrCloud(dir / name);
+    EXPECT_EQ(points.num_faces(), 0) << name;
+    EXPECT_TRUE(points.V.isApprox(mesh.V, 1e-6)) << name;
+  }
+  EXPECT_THROW(ReadMeshOrCloud(dir.Write("empty.xyz", "")), InputError);
 }
 
 TEST(MeshIoTest, RefusesUnknownExtensionNamingIt) {
