@@ -64,6 +64,17 @@ double SurfaceArea(const TriangleMesh& mesh) {
   return twice_area / 2.0;
 }
 
+Eigen::VectorXd VertexAreas(const TriangleMesh& mesh) {
+  Eigen::VectorXd area = Eigen::VectorXd::Zero(mesh.num_vertices());
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = mesh.V.col(mesh.F(0, f));
+    const double third =
+        (mesh.V.col(mesh.F(1, f)) - a).cross(mesh.V.col(mesh.F(2, f)) - a).norm() / 6.0;
+    for (int k = 0; k < 3; ++k) area[mesh.F(k, f)] += third;
+  }
+  return area;
+}
+
 double BoundingBoxDiagonal(const Eigen::Ref<const Eigen::Matrix3Xd>& P) {
   if (P.cols() == 0) return 0.0;
   return (P.rowwise().maxCoeff() - P.rowwise().minCoeff()).norm();

@@ -22,6 +22,11 @@ double SignedVolume(const TriangleMesh& mesh);
 /// Total triangle area.
 double SurfaceArea(const TriangleMesh& mesh);
 
+/// Each vertex's share of the surface: a third of the area of every face it is a corner of
+/// (#V entries, in the mesh's units squared; 0 for a vertex no face uses).
+/// @pre every index in mesh.F is in [0, #V).
+Eigen::VectorXd VertexAreas(const TriangleMesh& mesh);
+
 /// Length of the diagonal of the axis-aligned box around the 3 by N points @p P (0 if empty).
 double BoundingBoxDiagonal(const Eigen::Ref<const Eigen::Matrix3Xd>& P);
 

@@ -55,8 +55,7 @@ CarcassTemplate BuildCarcassTemplate(const TemplateOptions& options) {
   t.mesh.N = geometry::VertexNormals(t.mesh);
 
   const geometry::TopologyReport topology = geometry::AnalyzeTopology(t.mesh);
-  if (!topology.is_closed_manifold() || !topology.is_consistently_oriented() ||
-      topology.components != 1 || geometry::SignedVolume(t.mesh) <= 0.0) {
+  if (!topology.is_single_closed_surface() || geometry::SignedVolume(t.mesh) <= 0.0) {
     throw std::runtime_error(
         "synthetic template is not a closed, oriented, single-piece manifold: " +
         topology.Describe());

@@ -24,6 +24,7 @@
 #include "morph/surface_distance.h"
 #include "morph/template_artifact.h"
 #include "morph/template_model.h"
+#include "tools/bench_stats.h"
 #include "tools/shape_set/surface_wrap.h"
 
 namespace vb::tools {
@@ -47,50 +48,45 @@ double AcrossIfNotMetres(const Eigen::Matrix3Xd& points) {
                                      const geometry::TriangleMesh& mesh, const InputError& error) {
   std::string message = path.string() + ": " + error.what();
   if (!geometry::AnalyzeTopology(mesh).is_single_closed_surface()) {
-    message += "; `vbutcher template wrap --mesh " + path.string() +
-               " -o closed.ply` makes one closed surface around it";
+    message += "; `vbutcher template wrap --mesh '" + path.string() +
+               "' -o closed.ply` makes one closed surface around it";
   }
   throw InputError(message);
 }
 
-// How unevenly a mesh's vertices cover its surface: the 90th over the 10th percentile of each
-// vertex's area (a third of its faces'); vertices no face uses are left out. Evenly meshed
-// surfaces measure 1.7 (the synthetic lambs) to 3.2 (the shape benchmark's posed templates);
-// modelled bodies 11 (sydney) to 165 (spiderblob) (docs/decisions.md).
+// How unevenly a mesh's vertices cover its surface: the 90th over the 10th percentile of the
+// vertices' areas (geometry::VertexAreas); vertices no face uses are left out. Infinite when
+// fewer than 10 vertices have area.
 double VertexAreaSpread(const geometry::TriangleMesh& mesh) {
-  std::vector<double> area(static_cast<std::size_t>(mesh.num_vertices()), 0.0);
-  for (int f = 0; f < mesh.num_faces(); ++f) {
-    const Eigen::Vector3d a = mesh.V.col(mesh.F(0, f));
-    const double third =
-        (mesh.V.col(mesh.F(1, f)) - a).cross(mesh.V.col(mesh.F(2, f)) - a).norm() / 6.0;
-    for (int k = 0; k < 3; ++k) area[static_cast<std::size_t>(mesh.F(k, f))] += third;
-  }
-  std::erase_if(area, [](double x) { return !(x > 0); });
-  if (area.size() < 10) return std::numeric_limits<double>::infinity();
-  std::sort(area.begin(), area.end());
-  return area[area.size() * 9 / 10] / area[area.size() / 10];
+  const Eigen::VectorXd areas = geometry::VertexAreas(mesh);
+  std::vector<double> used;
+  for (double area : areas)
+    if (area > 0) used.push_back(area);
+  if (used.size() < 10) return std::numeric_limits<double>::infinity();
+  return Quantile(used, 0.9) / Quantile(used, 0.1);
 }
 
 // A mesh whose vertex areas spread more than this is read as its surface, not its vertices:
-// about the geometric middle of 3.2 and 11.
+// evenly meshed surfaces measure 1.7 to 3.2, modelled bodies 11 to 165 (docs/decisions.md).
 constexpr double kMostVertexAreaSpread = 6.0;
-// Points drawn over such a surface: at least as many as the shape benchmark draws per target
-// (a lamb rig cloud has about 18,000).
+// Points drawn over such a surface: at least as many as the shape benchmark draws per target.
 constexpr int kLeastSurfaceSamples = 20000;
 
-// The target at @p path as the morph reads it. A cloud, or a mesh whose vertices cover it
-// evenly: its points (and normals) as they are. A mesh meshed unevenly (a modelled body: few
-// vertices on large faces, many on small details): its vertices would over-weight the details
-// and leave the large faces empty, so its surface is sampled uniformly over its area,
-// max(its vertices, kLeastSurfaceSamples) points, without normals (they are estimated, facing
-// as the template does, whatever the mesh's winding). An even mesh keeps its vertices: sampling
-// a noisy one between its vertices would make its noise correlated over each face (measured:
-// the lamb's noisy meshes at sigma 4 mm morph 18 % worse sampled; docs/decisions.md).
-geometry::PointCloud ReadTarget(const std::filesystem::path& path) {
+// The target at @p path as the morph reads it (@p how: "auto", "vertices" or "surface"). A
+// cloud: its points and normals. A mesh read as vertices: likewise. A mesh read as its surface
+// ("auto" does when its vertex areas spread more than kMostVertexAreaSpread, or fewer than 10
+// vertices have area): max(its vertices, kLeastSurfaceSamples) points drawn uniformly over its
+// faces' area, the same on every run, without normals (they are estimated, facing as the
+// template does, whatever the mesh's winding). A modelled body's vertices crowd on its details
+// and leave its large faces empty; an evenly meshed noisy surface is better read at its
+// vertices, whose noise is independent (docs/decisions.md).
+geometry::PointCloud ReadTarget(const std::filesystem::path& path, const std::string& how) {
   geometry::TriangleMesh read = io::ReadMeshOrCloud(path);
   geometry::PointCloud target;
   const double spread = read.num_faces() > 0 ? VertexAreaSpread(read) : 0.0;
-  if (spread <= kMostVertexAreaSpread) {
+  const bool surface = read.num_faces() > 0 &&
+                       (how == "surface" || (how == "auto" && spread > kMostVertexAreaSpread));
+  if (!surface) {
     target.points = std::move(read.V);
     target.normals = std::move(read.N);
     return target;
@@ -106,10 +102,11 @@ geometry::PointCloud ReadTarget(const std::filesystem::path& path) {
     throw InputError(path.string() + ": " + e.what() + " (every face is degenerate)");
   }
   std::fprintf(stderr,
-               "morph: target: %s is meshed unevenly (vertex areas spread %.3g times, over %g): "
-               "its surface is sampled at %d points, uniformly over its area, normals "
-               "estimated\n",
-               path.string().c_str(), spread, kMostVertexAreaSpread, count);
+               "morph: target: %s is read as its surface (%s; vertex areas spread %.3g times, "
+               "over %g is uneven): %d points drawn uniformly over its area, normals estimated\n",
+               path.string().c_str(),
+               how == "surface" ? "--mesh-target surface" : "meshed unevenly", spread,
+               kMostVertexAreaSpread, count);
   return target;
 }
 
@@ -166,7 +163,7 @@ int RunMorphCommand(const MorphCommandOptions& options) {
       ThrowTemplateError(options.template_path, mesh, e);
     }
   }
-  const geometry::PointCloud target = ReadTarget(options.target_path);
+  const geometry::PointCloud target = ReadTarget(options.target_path, options.mesh_target);
   // Every length printed below reads the target as metres. A scan exported in millimetres (or
   // centimetres) against a template in metres morphs just as well, the morph being free of
   // scale, but the whole-morph check then gives every cut confidence 0 (MorphCheck::size).
@@ -344,12 +341,20 @@ int RunTemplateCompile(const TemplateCompileOptions& options) {
 }
 
 int RunTemplateWrap(const TemplateWrapOptions& options) {
+  // Where it goes, checked before the wrap's seconds or minutes are spent.
+  const io::FileFormat format = io::FormatFromPath(options.out_path);
+  if (format == io::FileFormat::kPcd || format == io::FileFormat::kXyz)
+    throw InputError(options.out_path.string() +
+                     ": cannot hold faces; write the wrap as .ply, .off or .obj");
+  const std::filesystem::path folder = options.out_path.parent_path();
+  if (!folder.empty() && !std::filesystem::is_directory(folder))
+    throw InputError(options.out_path.string() + ": folder " + folder.string() + " does not exist");
   const geometry::TriangleMesh input = io::ReadMesh(options.mesh_path);
   const std::string name = options.mesh_path.string();
   const auto start = std::chrono::steady_clock::now();
   geometry::TriangleMesh wrap;
   try {
-    wrap = WrapSurface(input, {.alpha = options.alpha, .offset = options.offset});
+    wrap = WrapSurface(input, options.wrap);
   } catch (const InputError& e) {
     throw InputError(name + ": " + e.what());
   }
@@ -359,7 +364,7 @@ int RunTemplateWrap(const TemplateWrapOptions& options) {
   std::printf("%s: %s\n", name.c_str(), geometry::AnalyzeTopology(input).Describe().c_str());
   std::printf(
       "wrap: alpha %.4g, offset %.4g (in the mesh's units), %.2f s: %d vertices, %d faces\n",
-      options.alpha * diagonal, options.offset * diagonal, seconds, wrap.num_vertices(),
+      options.wrap.alpha * diagonal, options.wrap.offset * diagonal, seconds, wrap.num_vertices(),
       wrap.num_faces());
   // How far the input's surface lies inside the wrap: each vertex a face uses, to the wrap.
   std::vector<bool> used(static_cast<std::size_t>(input.num_vertices()), false);
@@ -372,15 +377,14 @@ int RunTemplateWrap(const TemplateWrapOptions& options) {
   std::vector<double> gaps;
   for (const SurfaceAnchor& anchor : AnchorOnSurface(vertices, wrap))
     gaps.push_back(anchor.offset.norm());
-  std::sort(gaps.begin(), gaps.end());
   double mean = 0.0;
   for (double gap : gaps) mean += gap / static_cast<double>(gaps.size());
-  const double p95 = gaps[std::min(gaps.size() - 1, gaps.size() * 95 / 100)];
+  const double p95 = Quantile(gaps, 0.95);
+  const double most = *std::max_element(gaps.begin(), gaps.end());
   std::printf(
       "the input's vertices lie %.4g from the wrap on average, 95 %% within %.4g, at most "
       "%.4g (%.2f %%, %.2f %%, %.2f %% of its diagonal)\n",
-      mean, p95, gaps.back(), 100 * mean / diagonal, 100 * p95 / diagonal,
-      100 * gaps.back() / diagonal);
+      mean, p95, most, 100 * mean / diagonal, 100 * p95 / diagonal, 100 * most / diagonal);
   const geometry::TopologyReport topology = geometry::AnalyzeTopology(wrap);
   if (!topology.is_single_closed_surface()) {
     std::fprintf(stderr,

@@ -6,6 +6,7 @@
 
 #include "morph/coarse_alignment.h"
 #include "morph/morpher.h"
+#include "tools/shape_set/surface_wrap.h"
 
 namespace vb::tools {
 
@@ -22,6 +23,9 @@ struct MorphCommandOptions {
   std::vector<double> template_up, target_up;
   double max_tilt_deg = morph::UprightPrior{}.max_tilt_deg;
   int threads = morph::MorpherOptions{}.threads;  ///< threads the morph runs on
+  /// How a target mesh is read: "auto" (its surface when meshed unevenly, else its vertices),
+  /// "vertices" or "surface" (sampled uniformly over its area).
+  std::string mesh_target = "auto";
 };
 
 /// `vbutcher morph`: loads the template and target, morphs, writes the deformed template
@@ -34,7 +38,7 @@ struct TemplateCompileOptions {
   std::filesystem::path template_path;
   std::filesystem::path annotations_path;
   std::filesystem::path out_path;
-  std::string id;   ///< default: the annotations' template name
+  std::string id;  ///< default: the annotations' template name
   int version = 1;
 };
 /// `vbutcher template compile`: builds the template model once and stores it with the
@@ -44,8 +48,7 @@ int RunTemplateCompile(const TemplateCompileOptions& options);
 struct TemplateWrapOptions {
   std::filesystem::path mesh_path;
   std::filesystem::path out_path;
-  double alpha = 0.01;    ///< fraction of the input's bounding-box diagonal (WrapOptions)
-  double offset = 0.0014;  ///< likewise
+  WrapOptions wrap;
 };
 /// `vbutcher template wrap`: one closed, outward-oriented 2-manifold around any mesh (open,
 /// several pieces, self-intersecting), by CGAL's 3D alpha wrapping, in the input's units.

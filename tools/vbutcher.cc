@@ -88,6 +88,12 @@ int main(int argc, char** argv) {
   morph_cmd->add_option("--out", morph.out_path, "Deformed template (.ply, .off, .obj)")
       ->required();
   morph_cmd->add_option("--stage", morph.stage, "coarse | full")->capture_default_str();
+  morph_cmd
+      ->add_option("--mesh-target", morph.mesh_target,
+                   "A target mesh read as its vertices or its surface (points drawn uniformly "
+                   "over its area); auto: its surface when its vertices cover it unevenly")
+      ->check(CLI::IsMember({"auto", "vertices", "surface"}))
+      ->capture_default_str();
   add_threads(morph_cmd, morph.threads, "Threads the morph runs on");
   morph_cmd->add_option("--report", morph.report_path,
                         "JSON report of timings, features, association, solver");
@@ -129,13 +135,13 @@ int main(int argc, char** argv) {
   wrap_cmd->add_option("--mesh", wrap.mesh_path, "Mesh to wrap (.ply, .off, .obj)")->required();
   wrap_cmd->add_option("-o,--out", wrap.out_path, "Closed surface (.ply, .off, .obj)")->required();
   wrap_cmd
-      ->add_option("--alpha", wrap.alpha,
+      ->add_option("--alpha", wrap.wrap.alpha,
                    "Gaps narrower than this are bridged, finer detail smoothed; fraction of the "
                    "mesh's bounding-box diagonal (smaller: slower, more vertices)")
       ->check(CLI::Range(0.002, 0.5))
       ->capture_default_str();
   wrap_cmd
-      ->add_option("--offset", wrap.offset,
+      ->add_option("--offset", wrap.wrap.offset,
                    "How far outside the mesh the wrap lies; fraction of the diagonal")
       ->check(CLI::Range(1e-5, 0.1))
       ->capture_default_str();

@@ -16,6 +16,27 @@ TEST(MeshMeasuresTest, BoxVolumeAreaAndDiagonal) {
   EXPECT_NEAR(BoundingBoxDiagonal(box.V), std::sqrt(29.0), 1e-12);
 }
 
+TEST(MeshMeasuresTest, VertexAreasShareEachFaceInThirds) {
+  TriangleMesh mesh;
+  mesh.V.resize(3, 5);  // two right triangles of areas 1 and 2 sharing vertices 0 and 1; 4 unused
+  mesh.V << 0, 2, 0, 0, 9,  //
+      0, 0, 1, -2, 9,       //
+      0, 0, 0, 0, 9;
+  mesh.F.resize(3, 2);
+  mesh.F << 0, 0,  //
+      1, 3,        //
+      2, 1;
+  const Eigen::VectorXd area = VertexAreas(mesh);
+  ASSERT_EQ(area.size(), 5);
+  EXPECT_NEAR(area[0], 1.0, 1e-12);
+  EXPECT_NEAR(area[1], 1.0, 1e-12);
+  EXPECT_NEAR(area[2], 1.0 / 3.0, 1e-12);
+  EXPECT_NEAR(area[3], 2.0 / 3.0, 1e-12);
+  EXPECT_EQ(area[4], 0.0);
+  const TriangleMesh box = test::Box(2.0, 3.0, 4.0);
+  EXPECT_NEAR(VertexAreas(box).sum(), SurfaceArea(box), 1e-12);
+}
+
 TEST(MeshMeasuresTest, VolumeIsIndependentOfPlacementAndFlipsWithOrientation) {
   TriangleMesh box = test::Box();
   box.V.colwise() += Eigen::Vector3d(1e4, -2e4, 3e4);

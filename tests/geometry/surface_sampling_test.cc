@@ -4,8 +4,7 @@
 
 #include <random>
 #include <stdexcept>
-
-#include "tests/support/test_meshes.h"
+#include <vector>
 
 namespace vb::geometry {
 namespace {
@@ -49,16 +48,18 @@ TEST(SurfaceSamplingTest, DrawsPointsOnTheFacesInProportionToTheirArea) {
   EXPECT_NEAR(on_larger, 0.75 * kCount, 350);
 }
 
-TEST(SurfaceSamplingTest, IsTheSameForTheSameDraws) {
-  const TriangleMesh sphere = test::Sphere(1.0, 2);
-  Eigen::Matrix3Xd a, b, normals;
-  std::mt19937_64 first(3), second(3);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
+// Three draws per point, in the order face, u, v: the shape benchmark's targets depend on it.
+TEST(SurfaceSamplingTest, UsesThreeDrawsPerPointFaceThenUThenV) {
+  const std::vector<double> draws = {0.1, 0.2, 0.3, 0.5, 0.9, 0.6};
+  std::size_t next = 0;
+  Eigen::Matrix3Xd points, normals;
   SampleSurface(
-      sphere, 500, [&] { return unit(first); }, &a, &normals);
-  SampleSurface(
-      sphere, 500, [&] { return unit(second); }, &b, &normals);
-  EXPECT_EQ(a, b);
+      TwoTriangles(), 2, [&] { return draws.at(next++); }, &points, &normals);
+  EXPECT_EQ(next, draws.size());
+  // 0.1 of the area 4 falls in the first triangle (area 1): corner + 0.2 (b - a) + 0.3 (c - a).
+  EXPECT_TRUE(points.col(0).isApprox(Eigen::Vector3d(0.4, 0.3, 0.0), 1e-12)) << points.col(0);
+  // 0.5 of it in the second; u + v > 1 is folded back: u = 0.1, v = 0.4.
+  EXPECT_TRUE(points.col(1).isApprox(Eigen::Vector3d(10.3, 0.8, 0.0), 1e-12)) << points.col(1);
 }
 
 TEST(SurfaceSamplingTest, RefusesASurfaceWithoutArea) {
