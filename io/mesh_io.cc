@@ -57,25 +57,39 @@ void Report(const std::string& warning, std::vector<std::string>* warnings) {
   }
 }
 
+// The file at @p path in @p format as written: a mesh (perhaps without faces) for PLY, OFF and
+// OBJ; the points and normals of a PCD or xyz cloud as vertices.
+geometry::TriangleMesh ReadAny(const std::filesystem::path& path, FileFormat format,
+                               const ReadLimits& limits) {
+  geometry::TriangleMesh mesh;
+  geometry::PointCloud cloud;
+  switch (format) {
+    case FileFormat::kPly:
+      return ReadPly(path, limits);
+    case FileFormat::kOff:
+      return ReadOff(path, limits);
+    case FileFormat::kObj:
+      return ReadObj(path, limits);
+    case FileFormat::kPcd:
+      cloud = ReadPcd(path, limits);
+      break;
+    case FileFormat::kXyz:
+      cloud = ReadXyz(path, limits);
+      break;
+  }
+  mesh.V = std::move(cloud.points);
+  mesh.N = std::move(cloud.normals);
+  return mesh;
+}
+
 }  // namespace
 
 geometry::TriangleMesh ReadMesh(const std::filesystem::path& path, const ReadLimits& limits,
                                 std::vector<std::string>* warnings) {
-  geometry::TriangleMesh mesh;
-  switch (FormatFromPath(path)) {
-    case FileFormat::kPly:
-      mesh = ReadPly(path, limits);
-      break;
-    case FileFormat::kOff:
-      mesh = ReadOff(path, limits);
-      break;
-    case FileFormat::kObj:
-      mesh = ReadObj(path, limits);
-      break;
-    case FileFormat::kPcd:
-    case FileFormat::kXyz:
-      throw InputError(path.string() + ": holds a point cloud, but a triangle mesh is needed");
-  }
+  const FileFormat format = FormatFromPath(path);
+  if (format == FileFormat::kPcd || format == FileFormat::kXyz)
+    throw InputError(path.string() + ": holds a point cloud, but a triangle mesh is needed");
+  geometry::TriangleMesh mesh = ReadAny(path, format, limits);
   if (mesh.num_faces() == 0)
     throw InputError(path.string() + ": has no faces, but a triangle mesh is needed");
   Report(DropInvalidNormals(path.string(), &mesh.N), warnings);
@@ -84,30 +98,7 @@ geometry::TriangleMesh ReadMesh(const std::filesystem::path& path, const ReadLim
 
 geometry::TriangleMesh ReadMeshOrCloud(const std::filesystem::path& path, const ReadLimits& limits,
                                        std::vector<std::string>* warnings) {
-  geometry::TriangleMesh mesh;
-  switch (FormatFromPath(path)) {
-    case FileFormat::kPly:
-      mesh = ReadPly(path, limits);
-      break;
-    case FileFormat::kOff:
-      mesh = ReadOff(path, limits);
-      break;
-    case FileFormat::kObj:
-      mesh = ReadObj(path, limits);
-      break;
-    case FileFormat::kPcd: {
-      geometry::PointCloud cloud = ReadPcd(path, limits);
-      mesh.V = std::move(cloud.points);
-      mesh.N = std::move(cloud.normals);
-      break;
-    }
-    case FileFormat::kXyz: {
-      geometry::PointCloud cloud = ReadXyz(path, limits);
-      mesh.V = std::move(cloud.points);
-      mesh.N = std::move(cloud.normals);
-      break;
-    }
-  }
+  geometry::TriangleMesh mesh = ReadAny(path, FormatFromPath(path), limits);
   if (mesh.num_vertices() == 0) throw InputError(path.string() + ": holds no points");
   Report(DropInvalidNormals(path.string(), &mesh.N), warnings);
   return mesh;
