@@ -74,4 +74,38 @@ Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointInde
   return normals;
 }
 
+void RefitNormals(const Eigen::Matrix3Xd& points, const PointIndex& index,
+                  const std::vector<int>& counts, const std::vector<double>& radii,
+                  Eigen::Matrix3Xd* normals, WorkerPool* pool) {
+  VB_DEMAND(static_cast<Eigen::Index>(counts.size()) == points.cols() &&
+            radii.size() == counts.size() && normals->cols() == points.cols() &&
+            index.size() == points.cols());
+  constexpr Eigen::Index kBlock = 1024;
+  ForEachBlock(pool, points.cols(), kBlock, [&](Eigen::Index first, Eigen::Index last) {
+    std::vector<int> found;
+    std::vector<double> distances;  // squared
+    for (Eigen::Index j = first; j < last; ++j) {
+      const auto at = static_cast<std::size_t>(j);
+      if (counts[at] <= 0) continue;
+      index.Nearest(points.col(j), counts[at], &found, &distances);
+      const double reach = radii[at] * radii[at];
+      std::size_t within = 0;
+      while (within < found.size() && distances[within] <= reach) ++within;
+      if (within < 3) continue;
+      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+      for (std::size_t m = 0; m < within; ++m) mean += points.col(found[m]);
+      mean /= static_cast<double>(within);
+      Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+      for (std::size_t m = 0; m < within; ++m) {
+        const Eigen::Vector3d d = points.col(found[m]) - mean;
+        scatter += d * d.transpose();
+      }
+      Eigen::Vector3d normal =
+          Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvectors().col(0);
+      if (normal.dot(normals->col(j)) < 0) normal = -normal;
+      normals->col(j) = normal;
+    }
+  });
+}
+
 }  // namespace vb::morph

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <vector>
 
 #include "morph/point_index.h"
 #include "morph/worker_pool.h"
@@ -29,5 +30,18 @@ Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointInde
                                  int passes, const Eigen::Matrix3Xd& reference,
                                  const Eigen::Matrix3Xd& reference_normals,
                                  WorkerPool* pool = nullptr);
+
+/// Fits @p normals again over wider neighbourhoods: each point j with @p counts[j] > 0 gets
+/// the direction of least spread of its counts[j] nearest points (itself included; all
+/// points when there are fewer) that lie within @p radii[j] of it, signed to agree with its
+/// normal before. Other normals are left as they are. A point with fewer than 3 points in
+/// reach keeps its normal.
+/// @pre counts.size() == radii.size() == points.cols() == normals->cols(), @p index over
+///   @p points; radii in the points' units.
+/// @param pool when given, the points are shared among its threads; the result is the same
+///   on any number of threads.
+void RefitNormals(const Eigen::Matrix3Xd& points, const PointIndex& index,
+                  const std::vector<int>& counts, const std::vector<double>& radii,
+                  Eigen::Matrix3Xd* normals, WorkerPool* pool = nullptr);
 
 }  // namespace vb::morph

@@ -20,6 +20,40 @@ double Since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
+// Wider neighbourhoods for the normals of a cloud dense against its noise
+// (DenseOptions::normal_reach): per target point, a count of nearest points and the radius
+// they must lie within, count 0 where normal_neighbours already reach as far. @p density is
+// points per unit area and @p noise the estimated sigma, template sizes.
+struct NormalReach {
+  std::vector<int> counts;
+  std::vector<double> radii;
+};
+
+NormalReach WiderNormalReach(const geometry::TriangleMesh& posed, const Eigen::Matrix3Xd& points,
+                             double density, double noise, const DenseOptions& options,
+                             WorkerPool* pool) {
+  NormalReach wider{std::vector<int>(static_cast<std::size_t>(points.cols()), 0),
+                    std::vector<double>(static_cast<std::size_t>(points.cols()), 0.0)};
+  if (!(density > 0.0) || !(noise > 0.0)) return wider;
+  const double area_count = std::numbers::pi * density;  // points within radius r: this x r^2
+  const double fewest_reach = std::sqrt(options.normal_neighbours / area_count);
+  const double noise_reach = options.normal_reach * noise;
+  if (!(noise_reach > fewest_reach)) return wider;
+  const Eigen::VectorXd curvature = geometry::CurvatureSums(posed, posed.N);
+  const std::vector<int> nearest = NearestEach(PointIndex(posed.V), points, pool);
+  for (std::size_t j = 0; j < nearest.size(); ++j) {
+    // No farther than normal_curvature_reach radii of curvature (1 / |k1 + k2|).
+    const double bend = std::abs(curvature[nearest[j]]);
+    const double reach =
+        bend > 0.0 ? std::min(noise_reach, options.normal_curvature_reach / bend) : noise_reach;
+    if (!(reach > fewest_reach)) continue;
+    wider.radii[j] = reach;
+    wider.counts[j] = static_cast<int>(std::min(
+        std::ceil(area_count * reach * reach), static_cast<double>(options.max_normal_neighbours)));
+  }
+  return wider;
+}
+
 }  // namespace
 
 DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
@@ -91,6 +125,13 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
                                static_cast<double>(std::max(1, options.max_normal_passes)))));
     normals = EstimateNormals(points, *index, options.normal_neighbours, result.normal_passes,
                               posed.V, posed.N, pool);
+    if (result.normal_passes == 1 && options.normal_reach > 0) {
+      const NormalReach wider = WiderNormalReach(posed, points, density, noise, options, pool);
+      result.widened_normals = static_cast<int>(
+          std::count_if(wider.counts.begin(), wider.counts.end(), [](int k) { return k > 0; }));
+      if (result.widened_normals > 0)
+        RefitNormals(points, *index, wider.counts, wider.radii, &normals, pool);
+    }
   } else {
     const Eigen::Matrix3Xd used =
         target_normals(Eigen::all, Eigen::seq(0, Eigen::last, result.stride));

@@ -94,6 +94,7 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
                   {"density_per_m2", dense->density_m2},
                   {"surface_neighbours", dense->surface_neighbours},
                   {"normal_passes", dense->normal_passes},
+                  {"widened_normals", dense->widened_normals},
                   {"target_stride", dense->stride},
                   {"normals_s", dense->normals_seconds},
                   {"noise_s", dense->noise_seconds},

@@ -146,6 +146,8 @@ TEST_F(TemplateArtifactTest, KeepsItsMorphProfileAndRefusesOneOutOfBounds) {
               HasSubstr("dense.association.lambda: is not a finite number"));
   EXPECT_THAT(error([](MorphOptions* o) { o->dense.surface_neighbours = 100; }),
               HasSubstr("dense.surface_neighbours must not exceed dense.max_surface_neighbours"));
+  EXPECT_THAT(error([](MorphOptions* o) { o->dense.max_normal_neighbours = 20; }),
+              HasSubstr("dense.normal_neighbours must not exceed dense.max_normal_neighbours"));
 }
 
 TEST(MorphProfileTest, EveryDefaultLiesInItsBoundsAndEveryKeyIsOneMember) {
