@@ -541,6 +541,15 @@ TEST_F(DenseAlignmentTest, TheTemplateIsNotPulledIntoWhatTheCloudDoesNotShow) {
   EXPECT_LT(error[1], error[0]);
 }
 
+// @p num_points drawn over the whole of @p truth, noise @p sigma_m metres along the normals.
+Eigen::Matrix3Xd WholeCloud(const perception::PosedCarcass& truth, double sigma_m, int num_points,
+                            std::uint64_t seed) {
+  perception::CloudOptions cloud;
+  cloud.sigma_m = sigma_m;
+  cloud.num_points = num_points;
+  return perception::SampleSurfaceCloud(truth, cloud, seed).points;
+}
+
 TEST_F(DenseAlignmentTest, NoisyCloudsDoNotShrinkTheMorph) {
   // Noise as large as the point spacing (16 mm on a 1.2 m carcass, points about 9 mm apart).
   const double true_volume_sum = [&] {
@@ -554,9 +563,7 @@ TEST_F(DenseAlignmentTest, NoisyCloudsDoNotShrinkTheMorph) {
   for (std::uint64_t seed : {1000001u, 1000002u, 1000004u, 1000005u}) {
     const perception::PosedCarcass truth =
         perception::PoseCarcass(*carcass_, perception::SampleCarcassPose(seed));
-    perception::CloudOptions cloud;
-    cloud.sigma_m = 0.016;
-    const Eigen::Matrix3Xd target = perception::SampleSurfaceCloud(truth, cloud, seed).points;
+    const Eigen::Matrix3Xd target = WholeCloud(truth, 0.016, 20000, seed);
     const CoarseResult coarse = AlignCoarse(*model_, target);
     ASSERT_TRUE(coarse.ok) << coarse.error;
     for (bool unbias : {false, true}) {
@@ -585,10 +592,7 @@ TEST_F(DenseAlignmentTest, CloudsDenserThanTheirNoiseMorphAsSparserOnes) {
         perception::PoseCarcass(*carcass_, perception::SampleCarcassPose(seed));
     double sparse_noise = 0.0;
     for (int num_points : {20000, 80000}) {
-      perception::CloudOptions cloud;
-      cloud.sigma_m = 0.016;
-      cloud.num_points = num_points;
-      const Eigen::Matrix3Xd target = perception::SampleSurfaceCloud(truth, cloud, seed).points;
+      const Eigen::Matrix3Xd target = WholeCloud(truth, 0.016, num_points, seed);
       const CoarseResult coarse = AlignCoarse(*model_, target);
       ASSERT_TRUE(coarse.ok) << coarse.error;
       const DenseResult dense = AlignDense(*model_, coarse, target, Eigen::Matrix3Xd());
@@ -624,10 +628,7 @@ TEST_F(DenseAlignmentTest, CloudsDenseAgainstTheirNoiseGetNormalsThatReachBeyond
     const perception::PosedCarcass truth =
         perception::PoseCarcass(*carcass_, perception::SampleCarcassPose(seed));
     for (int num_points : {20000, 100000}) {
-      perception::CloudOptions cloud;
-      cloud.sigma_m = 0.003;
-      cloud.num_points = num_points;
-      const Eigen::Matrix3Xd target = perception::SampleSurfaceCloud(truth, cloud, seed).points;
+      const Eigen::Matrix3Xd target = WholeCloud(truth, 0.003, num_points, seed);
       const CoarseResult coarse = AlignCoarse(*model_, target);
       ASSERT_TRUE(coarse.ok) << coarse.error;
       for (const double reach : {DenseOptions{}.normal_reach, 0.0}) {
