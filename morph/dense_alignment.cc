@@ -136,6 +136,16 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     const Eigen::Matrix3Xd used =
         target_normals(Eigen::all, Eigen::seq(0, Eigen::last, result.stride));
     normals = to_template.R * used;
+    // Another program's normals may all point inward. Most of them disagreeing with the
+    // posed template's nearest normal says so, and then every one is turned.
+    const std::vector<int> nearest = NearestEach(PointIndex(posed.V), points, pool);
+    Eigen::Index agree = 0;
+    for (Eigen::Index j = 0; j < points.cols(); ++j)
+      agree += normals.col(j).dot(posed.N.col(nearest[static_cast<std::size_t>(j)])) > 0.0;
+    if (2 * agree < points.cols()) {
+      normals = -normals;
+      result.turned_normals = true;
+    }
   }
   result.normals_seconds = Since(phase);
 

@@ -25,7 +25,8 @@ struct DenseOptions {
   /// normal_neighbours x (noise / surface_noise)^2 points, at most max_normal_passes times
   /// normal_neighbours: a tilted plane has a part along the surface, so noisy normals would
   /// slide the template. Only for estimated normals; a target's own normals (a mesh's faces)
-  /// are used as given.
+  /// are used as given, all turned when most point against the posed template's
+  /// (DenseResult::turned_normals).
   int max_normal_passes = 8;
   /// On a cloud dense against its noise, normal_neighbours points reach too short: a lamb at
   /// 2 mm sampled five times as densely as the shape benchmark's clouds, about 3 sigma, and
@@ -149,6 +150,8 @@ struct DenseResult {
   int surface_neighbours = 0;  ///< target points averaged per plane point, from the noise
   int normal_passes = 0;       ///< EstimateNormals' passes, from the noise (0: own normals)
   int widened_normals = 0;     ///< normals fitted again to more points (normal_reach)
+  /// The target's own normals were turned: most pointed against the posed template's.
+  bool turned_normals = false;
   int stride = 1;              ///< every stride-th target point was used (thin_to_noise)
   double normals_seconds = 0.0;
   double noise_seconds = 0.0;

@@ -449,6 +449,26 @@ TEST_F(DenseAlignmentTest, RefinesTheCoarseMorphAndTransfersTheCuts) {
   }
 }
 
+// A target whose own normals all point inward (another program's convention) is morphed as
+// with them outward; before they were turned, no pair passed eq. (11)'s normal test.
+TEST_F(DenseAlignmentTest, TurnsATargetsOwnNormalsWhenMostPointInward) {
+  const std::uint64_t seed = 1000003u;
+  const perception::PosedCarcass truth =
+      perception::PoseCarcass(*carcass_, perception::SampleCarcassPose(seed));
+  const geometry::TriangleMesh target = perception::AddNormalNoise(truth.mesh, 0.002, seed);
+  const CoarseResult coarse = AlignCoarse(*model_, target.V);
+  ASSERT_TRUE(coarse.ok) << coarse.error;
+  const DenseResult outward = AlignDense(*model_, coarse, target.V, target.N);
+  ASSERT_TRUE(outward.ok) << outward.error;
+  EXPECT_FALSE(outward.turned_normals);
+  const Eigen::Matrix3Xd inward_normals = -target.N;
+  const DenseResult inward = AlignDense(*model_, coarse, target.V, inward_normals);
+  ASSERT_TRUE(inward.ok) << inward.error;
+  EXPECT_TRUE(inward.turned_normals);
+  EXPECT_TRUE(inward.mesh.V == outward.mesh.V);
+  EXPECT_TRUE(inward.target_normals == outward.target_normals);
+}
+
 TEST_F(DenseAlignmentTest, TargetPointsPullTheTemplateOverTheirWholeSurface) {
   // The template with everything below z = 0.1 (neck and forelegs) 30 % longer: the template's
   // own points find the target's sides there, which do not pull it along; the target's points
