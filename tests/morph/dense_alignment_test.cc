@@ -388,12 +388,28 @@ TEST(FilterAssociationsTest, KeepsConsistentPairs) {
 
 using DenseAlignmentTest = test::LambTemplateTest;
 
+// The lamb posed from @p seed as a mesh with 2 mm noise along its normals, and the coarse
+// stage on its vertices.
+struct NoisyLambMesh {
+  perception::PosedCarcass truth;
+  geometry::TriangleMesh target;
+  CoarseResult coarse;
+};
+
+NoisyLambMesh PlaceNoisyLambMesh(const perception::CarcassTemplate& carcass,
+                                 const TemplateModel& model, std::uint64_t seed) {
+  NoisyLambMesh lamb{perception::PoseCarcass(carcass, perception::SampleCarcassPose(seed)), {}, {}};
+  lamb.target = perception::AddNormalNoise(lamb.truth.mesh, 0.002, seed);
+  lamb.coarse = AlignCoarse(model, lamb.target.V);
+  return lamb;
+}
+
 TEST_F(DenseAlignmentTest, RefinesTheCoarseMorphAndTransfersTheCuts) {
   for (std::uint64_t seed : {1000003u, 1000006u}) {
-    const perception::PosedCarcass truth =
-        perception::PoseCarcass(*carcass_, perception::SampleCarcassPose(seed));
-    const geometry::TriangleMesh target = perception::AddNormalNoise(truth.mesh, 0.002, seed);
-    const CoarseResult coarse = AlignCoarse(*model_, target.V);
+    const NoisyLambMesh lamb = PlaceNoisyLambMesh(*carcass_, *model_, seed);
+    const perception::PosedCarcass& truth = lamb.truth;
+    const geometry::TriangleMesh& target = lamb.target;
+    const CoarseResult& coarse = lamb.coarse;
     ASSERT_TRUE(coarse.ok) << coarse.error;
     const DenseResult dense = AlignDense(*model_, coarse, target.V, target.N);
     ASSERT_TRUE(dense.ok) << dense.error;
@@ -452,11 +468,9 @@ TEST_F(DenseAlignmentTest, RefinesTheCoarseMorphAndTransfersTheCuts) {
 // A target whose own normals all point inward (another program's convention) is morphed as
 // with them outward; before they were turned, no pair passed eq. (11)'s normal test.
 TEST_F(DenseAlignmentTest, TurnsATargetsOwnNormalsWhenMostPointInward) {
-  const std::uint64_t seed = 1000003u;
-  const perception::PosedCarcass truth =
-      perception::PoseCarcass(*carcass_, perception::SampleCarcassPose(seed));
-  const geometry::TriangleMesh target = perception::AddNormalNoise(truth.mesh, 0.002, seed);
-  const CoarseResult coarse = AlignCoarse(*model_, target.V);
+  const NoisyLambMesh lamb = PlaceNoisyLambMesh(*carcass_, *model_, 1000003u);
+  const geometry::TriangleMesh& target = lamb.target;
+  const CoarseResult& coarse = lamb.coarse;
   ASSERT_TRUE(coarse.ok) << coarse.error;
   const DenseResult outward = AlignDense(*model_, coarse, target.V, target.N);
   ASSERT_TRUE(outward.ok) << outward.error;
