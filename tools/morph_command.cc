@@ -122,9 +122,11 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   if (!options.cuts_path.empty() && !has_annotations)
     throw InputError("morph: --cuts needs --annotations (or a --model, which holds them)");
   if (!options.cuts_path.empty() && options.stage != "full")
-    throw InputError("morph: --cuts needs --stage full (cuts come from the dense stage)");
+    throw InputError(
+        "morph: --cuts does not go with --stage coarse (cuts come from the dense stage)");
   if (!options.annotations_path.empty() && options.stage != "full")
-    throw InputError("morph: --annotations needs --stage full (cuts come from the dense stage)");
+    throw InputError(
+        "morph: --annotations does not go with --stage coarse (cuts come from the dense stage)");
   morph::MorphOptions morph_options;
   if (options.template_up.empty() != options.target_up.empty())
     throw InputError("morph: the upright prior needs both --template-up and --target-up");

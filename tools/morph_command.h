@@ -15,9 +15,10 @@ struct MorphCommandOptions {
   std::filesystem::path model_path;     ///< a compiled template (annotations included)
   std::filesystem::path target_path;
   std::filesystem::path out_path;
-  std::string stage = "coarse";  ///< coarse | full
+  /// full: the whole morph (coarse, dense, check, cuts); coarse: the posture alignment alone.
+  std::string stage = "full";
   std::filesystem::path report_path;
-  std::filesystem::path annotations_path;  ///< with --stage full: cuts to transfer
+  std::filesystem::path annotations_path;  ///< cuts to transfer (the full stage only)
   std::filesystem::path cuts_path;         ///< transferred cuts and part measures (JSON)
   /// Upright prior (CoarseOptions::upright), on when both directions are given.
   std::vector<double> template_up, target_up;

@@ -87,7 +87,11 @@ int main(int argc, char** argv) {
       ->required();
   morph_cmd->add_option("--out", morph.out_path, "Deformed template (.ply, .off, .obj)")
       ->required();
-  morph_cmd->add_option("--stage", morph.stage, "coarse | full")->capture_default_str();
+  morph_cmd
+      ->add_option("--stage", morph.stage,
+                   "full: the whole morph (coarse, dense, check, cuts); coarse: the posture "
+                   "alignment alone")
+      ->capture_default_str();
   morph_cmd
       ->add_option("--mesh-target", morph.mesh_target,
                    "A target mesh read as its vertices or its surface (points drawn uniformly "
@@ -97,8 +101,9 @@ int main(int argc, char** argv) {
   add_threads(morph_cmd, morph.threads, "Threads the morph runs on");
   morph_cmd->add_option("--report", morph.report_path,
                         "JSON report of timings, features, association, solver");
-  morph_cmd->add_option("--annotations", morph.annotations_path,
-                        "Template cut annotations (vbutcher-annotations YAML); needs --stage full");
+  morph_cmd->add_option(
+      "--annotations", morph.annotations_path,
+      "Template cut annotations (vbutcher-annotations YAML); not with --stage coarse");
   morph_cmd->add_option("--cuts", morph.cuts_path,
                         "Transferred cut planes, lines, confidence and part measures (JSON)");
   morph_cmd

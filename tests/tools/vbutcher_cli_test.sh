@@ -37,8 +37,19 @@ check "unknown subcommand" nonzero "" "$vbutcher" frobnicate
 check "unwritable output" 1 "cannot create" "$vbutcher" synth --out /proc/vb-cannot-write --count 1
 
 # morph: the template and a target of the set just written.
+# Without --stage it is the whole morph: the coarse stage, the dense stage and the check.
 check "morph writes the posed template and a report" 0 "coarse total" \
   "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/m.ply" --report "$work/r.json"
+for line in "morph: dense: noise" "morph: check: "; do
+  grep -q -- "$line" <<<"$last_out" || { echo "FAIL: morph without --stage printed no '$line'"; failures=$((failures + 1)); }
+done
+grep -q '"dense"' "$work/r.json" || { echo "FAIL: report of a morph without --stage lacks the dense stage"; failures=$((failures + 1)); }
+check "morph --stage coarse stops after the posture alignment" 0 "coarse total" \
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/c.ply" \
+  --stage coarse --report "$work/rc.json"
+if grep -q "morph: dense:" <<<"$last_out" || grep -q '"dense"' "$work/rc.json"; then
+  echo "FAIL: morph --stage coarse ran the dense stage"; failures=$((failures + 1))
+fi
 [ -s "$work/m.ply" ] || { echo "FAIL: morph wrote no mesh"; failures=$((failures + 1)); }
 grep -q '"ok": true' "$work/r.json" || { echo "FAIL: report does not say ok"; failures=$((failures + 1)); }
 grep -q '"placement"' "$work/r.json" || { echo "FAIL: report does not say where the placement came from"; failures=$((failures + 1)); }
@@ -47,7 +58,7 @@ grep -q '"kept"' "$work/r.json" || { echo "FAIL: report does not say whether the
 check "synth writes hanging targets" 0 "template:" "$vbutcher" synth --out "$work/up" --count 1 --seed 4 --upright
 check "morph with the upright prior" 0 "coarse total" \
   "$vbutcher" morph --template "$work/up/template.ply" --target "$work/up/target_000.ply" --out "$work/u.ply" \
-  --template-up 0 0 1 --target-up 0 0 1 --max-tilt-deg 30
+  --stage coarse --template-up 0 0 1 --target-up 0 0 1 --max-tilt-deg 30
 check "the upright prior needs both directions" 2 "--target-up" \
   "$vbutcher" morph --template "$work/up/template.ply" --target "$work/up/target_000.ply" --out "$work/x.ply" --template-up 0 0 1
 check "the upright prior refuses a zero direction" 2 "--template-up" \
@@ -178,8 +189,9 @@ if not 0 < dense["estimated_noise_m"] < 0.05:
 PY
 check "morph --cuts needs --annotations" 2 "--annotations" \
   "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/x.ply" --stage full --cuts "$work/x.json"
-check "morph --annotations needs the full stage" 2 "--stage full" \
-  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/x.ply" --annotations "$work/set/template_annotations.yaml"
+check "morph --annotations needs the full stage" 2 "--stage coarse" \
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/x.ply" \
+  --stage coarse --annotations "$work/set/template_annotations.yaml"
 sed 's/^vertex_count: .*/vertex_count: 12/' "$work/set/template_annotations.yaml" >"$work/other.yaml"
 check "morph refuses annotations of another mesh, naming the file" 2 "other.yaml" \
   "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/x.ply" --stage full --annotations "$work/other.yaml"
@@ -279,13 +291,14 @@ fi
 # An evenly meshed target (the synthetic lamb's noisy mesh) is read as its vertices, unless
 # the command says otherwise.
 check "morph reads an evenly meshed target as its vertices" 0 "coarse total" \
-  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/x.ply"
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/x.ply" \
+  --stage coarse
 if grep -q "read as its surface" <<<"$last_out"; then
   echo "FAIL: an evenly meshed target was read as its surface"; failures=$((failures + 1))
 fi
 check "morph --mesh-target surface samples it" 0 "target_000.ply is read as its surface (--mesh-target surface" \
   "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/x.ply" \
-  --mesh-target surface
+  --stage coarse --mesh-target surface
 check "morph --mesh-target takes auto, vertices or surface" nonzero "--mesh-target" \
   "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/x.ply" \
   --mesh-target faces
