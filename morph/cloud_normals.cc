@@ -87,10 +87,8 @@ void RefitNormals(const Eigen::Matrix3Xd& points, const PointIndex& index,
     for (Eigen::Index j = first; j < last; ++j) {
       const auto at = static_cast<std::size_t>(j);
       if (counts[at] <= 0) continue;
-      index.Nearest(points.col(j), counts[at], &found, &distances);
-      const double reach = radii[at] * radii[at];
-      std::size_t within = 0;
-      while (within < found.size() && distances[within] <= reach) ++within;
+      index.Within(points.col(j), radii[at], counts[at], &found, &distances);
+      const std::size_t within = found.size();
       if (within < 3) continue;
       Eigen::Vector3d mean = Eigen::Vector3d::Zero();
       for (std::size_t m = 0; m < within; ++m) mean += points.col(found[m]);

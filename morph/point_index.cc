@@ -1,6 +1,9 @@
 #include "morph/point_index.h"
 
+#include <algorithm>
+#include <cmath>
 #include <nanoflann.hpp>
+#include <utility>
 
 #include "io/error.h"
 #include "morph/worker_pool.h"
@@ -41,6 +44,35 @@ void PointIndex::Nearest(const Eigen::Vector3d& q, int k, std::vector<int>* indi
   indices->resize(count);
   squared_distances->resize(count);
   for (std::size_t i = 0; i < count; ++i) (*indices)[i] = static_cast<int>(found[i]);
+}
+
+void PointIndex::Within(const Eigen::Vector3d& q, double radius, int max_count,
+                        std::vector<int>* indices, std::vector<double>* squared_distances) const {
+  VB_DEMAND(radius >= 0.0 && max_count >= 0);
+  // nanoflann keeps squared distances strictly below its bound: the bound is nudged up and
+  // the points at exactly the radius are kept below.
+  const double reach = radius * radius;
+  thread_local std::vector<std::pair<Eigen::Index, double>> found;
+  found.clear();
+  tree_->adaptor.index->radiusSearch(q.data(), std::nextafter(reach, HUGE_VAL), found,
+                                     nanoflann::SearchParams(32, 0.0F, false));
+  std::erase_if(found, [&](const auto& f) { return f.second > reach; });
+  const auto nearer = [](const auto& a, const auto& b) {
+    return a.second < b.second || (a.second == b.second && a.first < b.first);
+  };
+  const auto kept = std::min(found.size(), static_cast<std::size_t>(max_count));
+  if (kept < found.size()) {
+    std::nth_element(found.begin(), found.begin() + static_cast<std::ptrdiff_t>(kept), found.end(),
+                     nearer);
+    found.resize(kept);
+  }
+  std::sort(found.begin(), found.end(), nearer);
+  indices->resize(kept);
+  squared_distances->resize(kept);
+  for (std::size_t i = 0; i < kept; ++i) {
+    (*indices)[i] = static_cast<int>(found[i].first);
+    (*squared_distances)[i] = found[i].second;
+  }
 }
 
 std::vector<int> NearestEach(const PointIndex& index, const Eigen::Matrix3Xd& queries,

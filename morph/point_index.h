@@ -21,6 +21,13 @@ class PointIndex {
   void Nearest(const Eigen::Vector3d& q, int k, std::vector<int>* indices,
                std::vector<double>* squared_distances) const;
 
+  /// The points within @p radius of @p q, the nearest @p max_count of them when there are
+  /// more: nearest first (equal distances by index), with squared distances. The same points
+  /// as the max_count nearest cut at the radius, found without ranking the farther ones.
+  /// @pre radius >= 0, max_count >= 0.
+  void Within(const Eigen::Vector3d& q, double radius, int max_count, std::vector<int>* indices,
+              std::vector<double>* squared_distances) const;
+
   int size() const { return static_cast<int>(points_.cols()); }
 
  private:

@@ -8,6 +8,8 @@
 #include <cstdio>
 #include <random>
 #include <tuple>
+#include <utility>
+#include <vector>
 
 #include "geometry/mesh_measures.h"
 #include "geometry/surface_point.h"
@@ -193,6 +195,35 @@ TEST(RefitNormalsTest, FitsTheCountedPointsWithinTheirRadiiAndKeepsTheirSigns) {
     RefitNormals(points, index, counts, radii, &shared, &pool);
     EXPECT_TRUE(shared == refitted) << threads << " threads";
   }
+}
+
+// The points within a radius, at most a count of them: the same points, in the same order,
+// as the count nearest cut at the radius; a point at exactly the radius is within it.
+TEST(PointIndexTest, WithinIsTheNearestCutAtTheRadius) {
+  Eigen::Matrix3Xd points = SpherePoints(5000, 21);
+  points.col(1) = points.col(0) + Eigen::Vector3d(0.25, 0.0, 0.0);  // exactly 0.25 away
+  const PointIndex index(points);
+  std::vector<int> nearest, within;
+  std::vector<double> nearest_d2, within_d2;
+  for (const auto& [radius, count] :
+       {std::pair{0.25, 400}, std::pair{0.25, 30}, std::pair{0.05, 400}, std::pair{0.0, 10},
+        std::pair{3.0, 5000}, std::pair{0.25, 0}}) {
+    for (Eigen::Index q : {Eigen::Index{0}, Eigen::Index{17}, Eigen::Index{4999}}) {
+      index.Nearest(points.col(q), count, &nearest, &nearest_d2);
+      std::size_t cut = 0;
+      while (cut < nearest.size() && nearest_d2[cut] <= radius * radius) ++cut;
+      nearest.resize(cut);
+      nearest_d2.resize(cut);
+      index.Within(points.col(q), radius, count, &within, &within_d2);
+      EXPECT_EQ(within, nearest) << "radius " << radius << " count " << count << " query " << q;
+      EXPECT_EQ(within_d2, nearest_d2) << "radius " << radius << " count " << count;
+    }
+  }
+  index.Within(points.col(0), 0.25, 5000, &within, &within_d2);
+  EXPECT_NE(std::find(within.begin(), within.end(), 1), within.end());
+  EXPECT_GT(within.size(), 30u);  // the cases above cut by the count as well as the radius
+  index.Within(points.col(0), 0.0, 10, &within, &within_d2);
+  EXPECT_EQ(within, std::vector<int>{0});  // only the point itself
 }
 
 // Likewise the plane points.
