@@ -19,9 +19,8 @@ namespace vb::morph {
 struct DenseOptions {
   /// Template vertices associated per round (every n-th vertex; all when the mesh is smaller).
   int num_samples = 2000;
-  /// Neighbours for the principal-axis normals of a target given without normals. Few, so
-  /// that a thin part's normals do not reach round it (docs/decisions.md: 12 against 24).
-  int normal_neighbours = 12;
+  /// Neighbours for the principal-axis normals of a target given without normals.
+  int normal_neighbours = 24;
   /// Noisier targets widen that neighbourhood (EstimateNormals' passes) to about
   /// normal_neighbours x (noise / surface_noise)^2 points, at most max_normal_passes times
   /// normal_neighbours: a tilted plane has a part along the surface, so noisy normals would
