@@ -37,7 +37,7 @@ Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointInde
 /// normal before. Other normals are left as they are. A point with fewer than 3 points in
 /// reach keeps its normal.
 /// @pre counts.size() == radii.size() == points.cols() == normals->cols(), @p index over
-///   @p points; radii in the points' units.
+///   @p points; radii in the points' units, radii[j] >= 0 (not NaN) where counts[j] > 0.
 /// @param pool when given, the points are shared among its threads; the result is the same
 ///   on any number of threads.
 void RefitNormals(const Eigen::Matrix3Xd& points, const PointIndex& index,

@@ -34,7 +34,12 @@ int PointIndex::Nearest(const Eigen::Vector3d& q) const {
 
 void PointIndex::Nearest(const Eigen::Vector3d& q, int k, std::vector<int>* indices,
                          std::vector<double>* squared_distances) const {
-  const auto n = static_cast<std::size_t>(std::min<Eigen::Index>(k, points_.cols()));
+  const auto n = static_cast<std::size_t>(std::clamp<Eigen::Index>(k, 0, points_.cols()));
+  if (n == 0) {  // nanoflann's result set reads its last slot, which an empty one lacks
+    indices->clear();
+    squared_distances->clear();
+    return;
+  }
   std::vector<Eigen::Index> found(n);
   squared_distances->resize(n);
   nanoflann::KNNResultSet<double, Eigen::Index> result(n);
@@ -49,14 +54,14 @@ void PointIndex::Nearest(const Eigen::Vector3d& q, int k, std::vector<int>* indi
 void PointIndex::Within(const Eigen::Vector3d& q, double radius, int max_count,
                         std::vector<int>* indices, std::vector<double>* squared_distances) const {
   VB_DEMAND(radius >= 0.0 && max_count >= 0);
-  // nanoflann keeps squared distances strictly below its bound: the bound is nudged up and
-  // the points at exactly the radius are kept below.
-  const double reach = radius * radius;
-  thread_local std::vector<std::pair<Eigen::Index, double>> found;
-  found.clear();
-  tree_->adaptor.index->radiusSearch(q.data(), std::nextafter(reach, HUGE_VAL), found,
+  indices->clear();
+  squared_distances->clear();
+  if (max_count == 0) return;
+  // nanoflann keeps squared distances strictly below its bound (for this metric the bound is
+  // a squared distance); d^2 < nextafter(r^2) is d^2 <= r^2.
+  std::vector<std::pair<Eigen::Index, double>> found;
+  tree_->adaptor.index->radiusSearch(q.data(), std::nextafter(radius * radius, HUGE_VAL), found,
                                      nanoflann::SearchParams(32, 0.0F, false));
-  std::erase_if(found, [&](const auto& f) { return f.second > reach; });
   const auto nearer = [](const auto& a, const auto& b) {
     return a.second < b.second || (a.second == b.second && a.first < b.first);
   };

@@ -17,14 +17,17 @@ class PointIndex {
 
   /// Index of the point nearest to @p q. @pre the index holds at least one point.
   int Nearest(const Eigen::Vector3d& q) const;
-  /// The (up to) @p k nearest points to @p q, nearest first, with squared distances.
+  /// The (up to) @p k nearest points to @p q, nearest first, with squared distances; none for
+  /// k <= 0.
   void Nearest(const Eigen::Vector3d& q, int k, std::vector<int>* indices,
                std::vector<double>* squared_distances) const;
 
-  /// The points within @p radius of @p q, the nearest @p max_count of them when there are
-  /// more: nearest first (equal distances by index), with squared distances. The same points
-  /// as the max_count nearest cut at the radius, found without ranking the farther ones.
-  /// @pre radius >= 0, max_count >= 0.
+  /// The points at most @p radius from @p q, the nearest @p max_count of them when there are
+  /// more: nearest first, equal distances by index, with squared distances. The same as
+  /// Nearest(q, max_count) cut at the radius, but for the order of equal distances, found
+  /// without ranking the farther points. Safe to call from several threads at once; each
+  /// call allocates a list of every point within the radius, and frees it.
+  /// @pre radius >= 0 (not NaN), max_count >= 0.
   void Within(const Eigen::Vector3d& q, double radius, int max_count, std::vector<int>* indices,
               std::vector<double>* squared_distances) const;
 

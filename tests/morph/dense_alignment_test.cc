@@ -198,10 +198,13 @@ TEST(RefitNormalsTest, FitsTheCountedPointsWithinTheirRadiiAndKeepsTheirSigns) {
 }
 
 // The points within a radius, at most a count of them: the same points, in the same order,
-// as the count nearest cut at the radius; a point at exactly the radius is within it.
+// as the count nearest cut at the radius (no two at equal distances here); a point at exactly
+// the radius is within it; equal distances go by index; no count, no points.
 TEST(PointIndexTest, WithinIsTheNearestCutAtTheRadius) {
   Eigen::Matrix3Xd points = SpherePoints(5000, 21);
-  points.col(1) = points.col(0) + Eigen::Vector3d(0.25, 0.0, 0.0);  // exactly 0.25 away
+  points.col(0) = Eigen::Vector3d(1.0, 0.0, 0.0);
+  points.col(1) = Eigen::Vector3d(1.25, 0.0, 0.0);  // exactly 0.25 away
+  ASSERT_EQ((points.col(1) - points.col(0)).squaredNorm(), 0.0625);
   const PointIndex index(points);
   std::vector<int> nearest, within;
   std::vector<double> nearest_d2, within_d2;
@@ -224,6 +227,18 @@ TEST(PointIndexTest, WithinIsTheNearestCutAtTheRadius) {
   EXPECT_GT(within.size(), 30u);  // the cases above cut by the count as well as the radius
   index.Within(points.col(0), 0.0, 10, &within, &within_d2);
   EXPECT_EQ(within, std::vector<int>{0});  // only the point itself
+  index.Nearest(points.col(0), 0, &nearest, &nearest_d2);
+  EXPECT_TRUE(nearest.empty() && nearest_d2.empty());
+  // Equal distances: four copies of a point, found in the order of their indices.
+  Eigen::Matrix3Xd copies(3, 6);
+  copies << 0.0, 0.0, 0.0, 0.0, 1.0, 0.0,  //
+      0.0, 0.0, 0.0, 0.0, 0.0, 1.0,        //
+      0.0, 0.0, 0.0, 0.0, 0.0, 0.0;
+  const PointIndex copies_index(copies);
+  copies_index.Within(Eigen::Vector3d(0.0, 0.0, 0.5), 1.0, 3, &within, &within_d2);
+  EXPECT_EQ(within, (std::vector<int>{0, 1, 2}));
+  copies_index.Within(Eigen::Vector3d::Zero(), 1.0, 6, &within, &within_d2);
+  EXPECT_EQ(within, (std::vector<int>{0, 1, 2, 3, 4, 5}));
 }
 
 // Likewise the plane points.

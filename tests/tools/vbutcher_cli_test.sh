@@ -43,7 +43,7 @@ check "morph writes the posed template and a report" 0 "coarse total" \
 for line in "morph: dense: noise" "morph: check: "; do
   grep -q -- "$line" <<<"$last_out" || { echo "FAIL: morph without --stage printed no '$line'"; failures=$((failures + 1)); }
 done
-grep -q '"dense"' "$work/r.json" || { echo "FAIL: report of a morph without --stage lacks the dense stage"; failures=$((failures + 1)); }
+grep -q '"rounds"' "$work/r.json" || { echo "FAIL: report of a morph without --stage lacks the dense rounds"; failures=$((failures + 1)); }
 check "morph --stage coarse stops after the posture alignment" 0 "coarse total" \
   "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/c.ply" \
   --stage coarse --report "$work/rc.json"
@@ -155,7 +155,8 @@ awk 'body { $1 *= 1000; $2 *= 1000; $3 *= 1000 } { print } /^end_header/ { body 
   "$work/zero_normals.ply" > "$work/millimetres.ply"
 check "morph warns that a scan 1000 times a body's size is read as metres" 0 \
   "millimetres.ply is [0-9.]* across, read as metres" \
-  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/millimetres.ply" --out "$work/mm.ply"
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/millimetres.ply" --out "$work/mm.ply" \
+  --stage coarse
 # A cloud much denser than its noise: the morph reads and uses it at every n-th point.
 check "synth writes a dense noisy cloud" 0 "template:" "$vbutcher" synth --out "$work/dense" --count 1 \
   --seed 5 --sigma-mm 16 --cloud --cloud-points 80000
@@ -189,6 +190,9 @@ if not 0 < dense["estimated_noise_m"] < 0.05:
 PY
 check "morph --cuts needs --annotations" 2 "--annotations" \
   "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/x.ply" --stage full --cuts "$work/x.json"
+check "morph --cuts needs the full stage" 2 "--stage coarse" \
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/x.ply" \
+  --stage coarse --annotations "$work/set/template_annotations.yaml" --cuts "$work/x.json"
 check "morph --annotations needs the full stage" 2 "--stage coarse" \
   "$vbutcher" morph --template "$work/set/template.ply" --target "$work/set/target_000.ply" --out "$work/x.ply" \
   --stage coarse --annotations "$work/set/template_annotations.yaml"
