@@ -66,12 +66,8 @@ void PointIndex::Within(const Eigen::Vector3d& q, double radius, int max_count,
     return a.second < b.second || (a.second == b.second && a.first < b.first);
   };
   const auto kept = std::min(found.size(), static_cast<std::size_t>(max_count));
-  if (kept < found.size()) {
-    std::nth_element(found.begin(), found.begin() + static_cast<std::ptrdiff_t>(kept), found.end(),
-                     nearer);
-    found.resize(kept);
-  }
-  std::sort(found.begin(), found.end(), nearer);
+  std::partial_sort(found.begin(), found.begin() + static_cast<std::ptrdiff_t>(kept), found.end(),
+                    nearer);
   indices->resize(kept);
   squared_distances->resize(kept);
   for (std::size_t i = 0; i < kept; ++i) {
