@@ -745,7 +745,8 @@ bool Pipeline::Tick() {
                                                    : vbutcher::diagnostic_t::INFO,
              "daemon", what);
   }
-  if (rig_check_requested_.exchange(false) && !rig_check_running_) {
+  // A check asked for while one runs waits for it (the request stays until then).
+  if (!rig_check_running_ && rig_check_requested_.exchange(false)) {
     if (rig_check_thread_.joinable()) rig_check_thread_.join();  // the last one has finished
     rig_check_running_ = true;
     rig_check_thread_ = std::thread([this] { RigCheck(); });

@@ -81,7 +81,7 @@ class Pipeline {
   /// Asks for a rig check on the next frames (the target on the hook, every camera against
   /// the others; config rig_check): from the main loop on SIGUSR1, and by Start() when
   /// rig_check.at_start. It runs on a thread of its own while capture and jobs go on; a
-  /// request while one runs is dropped.
+  /// request while one runs is run after it (several such requests, once).
   void RequestRigCheck();
   /// The last rig check in one line: "not checked yet", "ok at 10:42:07, ...", ...
   std::string RigCheckLine() const;

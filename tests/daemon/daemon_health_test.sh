@@ -10,7 +10,8 @@
 #  3. simulation: true: every log line and the status say SIMULATION.
 #  4. The rig check: at start on an empty hook it says the target is not there; on SIGUSR1
 #     with the target hung it finds the rig ok (VB_STATUS per camera); a rig whose cam1 is
-#     said to stand 10 mm off is found MOVED at start: DEGRADED, a warning, jobs refused.
+#     said to stand 10 mm off is found MOVED at start: DEGRADED, a warning, jobs refused; a
+#     check asked for while the one at start runs follows it.
 # Usage: daemon_health_test.sh <vbutcher> <virtualbutcherd>
 set -euo pipefail
 vbutcher=$(realpath "$1")
@@ -85,16 +86,28 @@ run_until() {
     2>"$work/$1.daemon.log" &
   daemon_pid=$!
   [ -z "${during:-}" ] || (eval "$during")
-  for _ in $(seq 600); do
-    [ "$(grep -c "^<[0-7]>virtualbutcherd: rig check\(:\| failed:\) " "$work/$1.daemon.log")" -ge "$3" ] && break
+  local end=$((SECONDS + 60)) seen=0
+  while [ $SECONDS -lt $end ] && kill -0 $daemon_pid 2>/dev/null; do
+    seen=$(grep -c "^<[0-7]>virtualbutcherd: rig check\(:\| failed:\) " "$work/$1.daemon.log" \
+      2>/dev/null || true)
+    [ "${seen:-0}" -ge "$3" ] && break
     sleep 0.1
   done
+  [ "${seen:-0}" -ge "$3" ] || fail "$1: ${seen:-0} of $3 rig-check outcomes logged"
   sleep 2
-  kill -TERM $daemon_pid
-  wait $daemon_pid || fail "$1: the daemon exited with $? on SIGTERM"
+  kill -TERM $daemon_pid 2>/dev/null || true
+  wait $daemon_pid || fail "$1: the daemon exited with $?"
   sleep 0.5  # the listener prints (and flushes) each message as it comes
   kill -TERM $listener 2>/dev/null || true
   wait $listener || true
+}
+# wait_for_log <name> <pattern>: until the daemon's log holds the pattern (at most 60 s).
+wait_for_log() {
+  local end=$((SECONDS + 60))
+  until grep -q "$2" "$work/$1.daemon.log" 2>/dev/null; do
+    [ $SECONDS -lt $end ] || fail "$1: no '$2' in the log in 60 s"
+    sleep 0.05
+  done
 }
 
 version=$("$daemon" --version)
@@ -131,8 +144,8 @@ awk -v f="${fps:-0}" -v lo=$floor 'BEGIN { exit !(f >= lo && f <= 33) }' ||
   fail "cam0 fps '$fps' is not the measured ~30 (at least $floor): $last"
 [ -n "$ago" ] && [ "$ago" -lt 1000 ] || fail "cam0's last frame is not recent: $last"
 
-# 2. All cameras present.
-run good good.yaml
+# 2. All cameras present (and the rig check at start, on an empty hook, has finished).
+run_until good good.yaml 1
 grep -q "READY=1" "$work/good.notify.log" || fail "no READY=1"
 grep -q "STATUS=ready, waiting for a carcass; cameras 2 of 2 ok;" "$work/good.notify.log" ||
   fail "STATUS does not say ready with both cameras"
@@ -156,7 +169,9 @@ grep -q "VB_STATUS seq .* state READY .*: SIMULATION; ready" "$work/sim.listen.t
 grep -q "^<6>virtualbutcherd: rig check: not checked at .*: the calibration target is not on the hook (0 of 2 cameras" \
   "$work/good.daemon.log" || fail "the check at start did not say the target is not on the hook"
 "$vbutcher" calibrate target --mesh "$work/target.ply" >/dev/null
-during='sleep 3; printf "carcass: %s\n" "$work/target.ply" >>"$work/rig/scene.yaml"; sleep 1; kill -USR1 $daemon_pid'
+# The target is hung once the check at start has found the hook empty.
+during='wait_for_log request "rig check: not checked"
+  printf "carcass: %s\n" "$work/target.ply" >>"$work/rig/scene.yaml"; sleep 1; kill -USR1 $daemon_pid'
 run_until request good.yaml 2  # the empty hook at start, then the one asked for
 during=
 grep -q "^<5>virtualbutcherd: SIGUSR1: a rig check on the next frames" "$work/request.daemon.log" ||
@@ -176,7 +191,13 @@ awk '/translation: \[/ && ++n == 2 { match($0, /\[[-0-9.e]*/); x = substr($0, RS
 printf '%s\n' "format: virtualbutcherd-config" "version: 1" "template: lamb.vbt" "rig: rig3/rig_moved.yaml" \
   "virtual_scene: rig3/scene.yaml" "lcm: {url: \"$url\", status_period_ms: 250}" \
   "can: {interface: loopback}" "job: {state_file: job-state}" >"$work/moved.yaml"
-run_until moved moved.yaml 1
+# SIGUSR1 while the check at start still waits for its frames (as soon as a camera is ok):
+# the check asked for runs after it, not never.
+during='wait_for_log moved "camera cam0 (serial VB0001) is ok"; kill -USR1 $daemon_pid'
+run_until moved moved.yaml 2
+during=
+[ "$(grep -c "^<4>virtualbutcherd: rig check: MOVED at " "$work/moved.daemon.log")" = 2 ] ||
+  fail "a check asked for (SIGUSR1) during the check at start did not run after it"
 grep -q "^<4>virtualbutcherd: rig check: MOVED at .*: cam1 moved [0-9.]* mm, turned [0-9.]* deg; jobs are refused" \
   "$work/moved.daemon.log" || fail "the moved camera was not found at start (or not it alone)"
 grep -q "VB_STATUS seq .* state DEGRADED .*rig check: MOVED" "$work/moved.listen.txt" ||
