@@ -20,10 +20,11 @@ double Since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-// Wider neighbourhoods for the normals of a cloud dense against its noise
-// (DenseOptions::normal_reach): per target point, a count of nearest points and the radius
-// they must lie within, count 0 where normal_neighbours already reach as far. @p density is
-// points per unit area and @p noise the estimated sigma, template sizes.
+// How far each target point's normal reaches where the noise leaves one pass
+// (DenseOptions::min_normal_neighbours and the four after it): per point, a count of nearest
+// points and the radius they must lie within, count 0 where min_normal_neighbours points are
+// as far as the shape allows. @p density is points per unit area and @p noise the estimated
+// sigma, template sizes.
 struct NormalReach {
   std::vector<int> counts;
   std::vector<double> radii;
@@ -34,18 +35,19 @@ NormalReach WiderNormalReach(const geometry::TriangleMesh& posed, const Eigen::M
                              WorkerPool* pool) {
   NormalReach wider{std::vector<int>(static_cast<std::size_t>(points.cols()), 0),
                     std::vector<double>(static_cast<std::size_t>(points.cols()), 0.0)};
-  if (!(density > 0.0) || !(noise > 0.0)) return wider;
+  if (!(density > 0.0)) return wider;
   const double area_count = std::numbers::pi * density;  // points within radius r: this x r^2
-  const double fewest_reach = std::sqrt(options.normal_neighbours / area_count);
-  const double noise_reach = options.normal_reach * noise;
-  if (!(noise_reach > fewest_reach)) return wider;
+  const double fewest_reach = std::sqrt(options.min_normal_neighbours / area_count);
+  const double wanted_reach = std::max(options.normal_reach * std::max(noise, 0.0),
+                                       std::sqrt(options.normal_neighbours / area_count));
+  if (!(wanted_reach > fewest_reach)) return wider;
   const Eigen::VectorXd curvature = geometry::CurvatureSums(posed, posed.N);
   const std::vector<int> nearest = NearestEach(PointIndex(posed.V), points, pool);
   for (std::size_t j = 0; j < nearest.size(); ++j) {
     // No farther than normal_curvature_reach radii of curvature (1 / |k1 + k2|).
     const double bend = std::abs(curvature[nearest[j]]);
     const double reach =
-        bend > 0.0 ? std::min(noise_reach, options.normal_curvature_reach / bend) : noise_reach;
+        bend > 0.0 ? std::min(wanted_reach, options.normal_curvature_reach / bend) : wanted_reach;
     if (!(reach > fewest_reach)) continue;
     wider.radii[j] = reach;
     wider.counts[j] = static_cast<int>(std::min(
@@ -123,9 +125,13 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     result.normal_passes = static_cast<int>(
         std::lround(std::clamp(relative_surface_noise * relative_surface_noise, 1.0,
                                static_cast<double>(std::max(1, options.max_normal_passes)))));
-    normals = EstimateNormals(points, *index, options.normal_neighbours, result.normal_passes,
-                              posed.V, posed.N, pool);
-    if (result.normal_passes == 1 && options.normal_reach > 0) {
+    // Where the noise leaves one pass, the fewest points first: a sign for every normal (from
+    // the posed template), and the normal itself where the shape allows no more.
+    normals = EstimateNormals(
+        points, *index,
+        result.normal_passes == 1 ? options.min_normal_neighbours : options.normal_neighbours,
+        result.normal_passes, posed.V, posed.N, pool);
+    if (result.normal_passes == 1) {
       const NormalReach wider = WiderNormalReach(posed, points, density, noise, options, pool);
       result.widened_normals = static_cast<int>(
           std::count_if(wider.counts.begin(), wider.counts.end(), [](int k) { return k > 0; }));

@@ -19,26 +19,24 @@ namespace vb::morph {
 struct DenseOptions {
   /// Template vertices associated per round (every n-th vertex; all when the mesh is smaller).
   int num_samples = 2000;
-  /// Neighbours for the principal-axis normals of a target given without normals.
+  /// A target given without normals gets principal-axis normals. Noisy ones
+  /// (EstimateNormals' passes) average about normal_neighbours x (noise / surface_noise)^2
+  /// points, at most max_normal_passes times normal_neighbours: a tilted plane has a part
+  /// along the surface, so noisy normals would slide the template.
   int normal_neighbours = 24;
-  /// Noisier targets widen that neighbourhood (EstimateNormals' passes) to about
-  /// normal_neighbours x (noise / surface_noise)^2 points, at most max_normal_passes times
-  /// normal_neighbours: a tilted plane has a part along the surface, so noisy normals would
-  /// slide the template. Only for estimated normals; a target's own normals (a mesh's faces)
+  int max_normal_passes = 8;
+  /// Where the noise leaves one pass (under about 1.2 surface_noise), each normal reaches
+  /// instead over a radius of its own (RefitNormals): normal_reach noise levels, and no
+  /// shorter than where normal_neighbours points lie (the cloud's density says how far), but
+  /// no farther than normal_curvature_reach radii of curvature of the posed template at the
+  /// nearest vertex (1 / |k1 + k2|), so that a thin limb's normals do not reach round it;
+  /// never fewer than min_normal_neighbours points, nor more than max_normal_neighbours.
+  /// normal_reach 0: the noise does not widen them. A target's own normals (a mesh's faces)
   /// are used as given, all turned when most point against the posed template's
   /// (DenseResult::turned_normals).
-  int max_normal_passes = 8;
-  /// On a cloud dense against its noise, normal_neighbours points reach too short: a lamb at
-  /// 2 mm sampled five times as densely as the shape benchmark's clouds, about 3 sigma, and
-  /// the normals tilt with the noise and slide the template. So where the noise leaves one
-  /// pass (noise under about 1.2 surface_noise), each point's normal is fitted again
-  /// (RefitNormals) to its nearest points within normal_reach noise levels (the count the
-  /// cloud's density puts there, up to max_normal_neighbours). 0: off.
+  int min_normal_neighbours = 12;
   double normal_reach = 4.0;
-  /// No farther than this many radii of curvature of the posed template at the nearest vertex
-  /// (1 / |k1 + k2|), so that a thin limb's normals do not reach round it.
   double normal_curvature_reach = 0.5;
-  /// Most points such a normal is fitted to.
   int max_normal_neighbours = 500;
   /// Each associated target point is replaced by a plane point (PlanePoints): the centroid
   /// of this many nearest target points, which averages sensor noise along the normal. Few,
@@ -149,7 +147,7 @@ struct DenseResult {
   double density_m2 = 0.0;
   int surface_neighbours = 0;  ///< target points averaged per plane point, from the noise
   int normal_passes = 0;       ///< EstimateNormals' passes, from the noise (0: own normals)
-  int widened_normals = 0;     ///< normals fitted again to more points (normal_reach)
+  int widened_normals = 0;     ///< normals fitted to more than min_normal_neighbours points
   /// The target's own normals were turned: most pointed against the posed template's.
   bool turned_normals = false;
   int stride = 1;              ///< every stride-th target point was used (thin_to_noise)

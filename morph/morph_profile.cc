@@ -73,9 +73,10 @@ const std::array kKeys = {
     VB_PROFILE_KEY(dense.reverse_samples, kCount, 0, 100000, true, "target points associated back a round"),
     VB_PROFILE_KEY(dense.rounds, kRounds, 1, 50, true, "association, filtering and deformation rounds"),
     VB_PROFILE_KEY(dense.stiffness_decay, kFraction, 0.01, 1.0, false, "regularisers' multiplier each round"),
-    VB_PROFILE_KEY(dense.normal_neighbours, kCount, 3, 500, false, "neighbours of a cloud's normals"),
+    VB_PROFILE_KEY(dense.normal_neighbours, kCount, 3, 500, false, "neighbours of a cloud's normals (one pass: reach at least theirs)"),
     VB_PROFILE_KEY(dense.max_normal_passes, kCount, 1, 64, false, "widening passes of a noisy cloud's normals"),
-    VB_PROFILE_KEY(dense.normal_reach, "noise levels", 0.0, 20.0, false, "a dense cloud's normals reach this far (0: off)"),
+    VB_PROFILE_KEY(dense.min_normal_neighbours, kCount, 3, 500, false, "one pass: points a cloud's normal is fitted to at least"),
+    VB_PROFILE_KEY(dense.normal_reach, "noise levels", 0.0, 20.0, false, "one pass: normals reach this far (0: not the noise)"),
     VB_PROFILE_KEY(dense.normal_curvature_reach, "radii of curvature", 0.01, 2.0, false, "but no farther than this on the posed template"),
     VB_PROFILE_KEY(dense.max_normal_neighbours, kCount, 3, 2000, false, "points such a normal is fitted to at most"),
     VB_PROFILE_KEY(dense.surface_neighbours, kCount, 1, 500, false, "points a plane point averages at surface_noise"),
@@ -164,6 +165,8 @@ std::string CheckProfile(const MorphOptions& options) {
     return "check.stretch_start must be below check.stretch_end";
   if (!(options.check.min_size < options.check.max_size))
     return "check.min_size must be below check.max_size";
+  if (options.dense.min_normal_neighbours > options.dense.normal_neighbours)
+    return "dense.min_normal_neighbours must not exceed dense.normal_neighbours";
   if (options.dense.normal_neighbours > options.dense.max_normal_neighbours)
     return "dense.normal_neighbours must not exceed dense.max_normal_neighbours";
   if (options.dense.surface_neighbours > options.dense.max_surface_neighbours)

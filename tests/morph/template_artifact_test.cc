@@ -148,6 +148,8 @@ TEST_F(TemplateArtifactTest, KeepsItsMorphProfileAndRefusesOneOutOfBounds) {
               HasSubstr("dense.surface_neighbours must not exceed dense.max_surface_neighbours"));
   EXPECT_THAT(error([](MorphOptions* o) { o->dense.max_normal_neighbours = 20; }),
               HasSubstr("dense.normal_neighbours must not exceed dense.max_normal_neighbours"));
+  EXPECT_THAT(error([](MorphOptions* o) { o->dense.min_normal_neighbours = 30; }),
+              HasSubstr("dense.min_normal_neighbours must not exceed dense.normal_neighbours"));
 }
 
 TEST(MorphProfileTest, EveryDefaultLiesInItsBoundsAndEveryKeyIsOneMember) {
