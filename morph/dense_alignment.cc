@@ -21,10 +21,11 @@ double Since(std::chrono::steady_clock::time_point start) {
 }
 
 // How far each target point's normal reaches where the noise leaves one pass
-// (DenseOptions::min_normal_neighbours and the four after it): per point, a count of nearest
-// points and the radius they must lie within, count 0 where min_normal_neighbours points are
-// as far as the shape allows. @p density is points per unit area and @p noise the estimated
-// sigma, template sizes.
+// (DenseOptions::normal_neighbours, min_normal_neighbours, normal_reach,
+// normal_curvature_reach, max_normal_neighbours): per point, a count of nearest points and the
+// radius they must lie within, count 0 where min_normal_neighbours points are as far as the
+// shape allows. @p density is points per unit area (the cloud's median) and @p noise the
+// estimated sigma, template sizes.
 struct NormalReach {
   std::vector<int> counts;
   std::vector<double> radii;

@@ -25,13 +25,17 @@ struct DenseOptions {
   /// along the surface, so noisy normals would slide the template.
   int normal_neighbours = 24;
   int max_normal_passes = 8;
-  /// Where the noise leaves one pass (under about 1.2 surface_noise), each normal reaches
-  /// instead over a radius of its own (RefitNormals): normal_reach noise levels, and no
-  /// shorter than where normal_neighbours points lie (the cloud's density says how far), but
-  /// no farther than normal_curvature_reach radii of curvature of the posed template at the
-  /// nearest vertex (1 / |k1 + k2|), so that a thin limb's normals do not reach round it;
-  /// never fewer than min_normal_neighbours points, nor more than max_normal_neighbours.
-  /// normal_reach 0: the noise does not widen them. A target's own normals (a mesh's faces)
+  /// Where the noise leaves one pass (under about 1.2 surface_noise), each normal is fitted
+  /// first to its min_normal_neighbours nearest, then again (RefitNormals) to the points
+  /// within a radius of its own: normal_reach noise levels, and no shorter than where
+  /// normal_neighbours points lie at the cloud's median density, but no farther than
+  /// normal_curvature_reach radii of curvature of the posed template at the nearest vertex
+  /// (1 / |k1 + k2|), so that a thin limb's normals do not reach round it; at most
+  /// max_normal_neighbours points. A radius held under where min_normal_neighbours points lie
+  /// keeps the first fit; a sparser patch (a hole's rim) may fit fewer points, 3 at least.
+  /// normal_reach 0: the noise does not widen them; min_normal_neighbours equal to
+  /// normal_neighbours: each point's normal_neighbours nearest where the shape allows no
+  /// more. A target's own normals (a mesh's faces)
   /// are used as given, all turned when most point against the posed template's
   /// (DenseResult::turned_normals).
   int min_normal_neighbours = 12;
@@ -147,7 +151,7 @@ struct DenseResult {
   double density_m2 = 0.0;
   int surface_neighbours = 0;  ///< target points averaged per plane point, from the noise
   int normal_passes = 0;       ///< EstimateNormals' passes, from the noise (0: own normals)
-  int widened_normals = 0;     ///< normals fitted to more than min_normal_neighbours points
+  int widened_normals = 0;     ///< normals given a radius of their own (one pass, RefitNormals)
   /// The target's own normals were turned: most pointed against the posed template's.
   bool turned_normals = false;
   int stride = 1;              ///< every stride-th target point was used (thin_to_noise)

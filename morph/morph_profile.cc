@@ -75,7 +75,7 @@ const std::array kKeys = {
     VB_PROFILE_KEY(dense.stiffness_decay, kFraction, 0.01, 1.0, false, "regularisers' multiplier each round"),
     VB_PROFILE_KEY(dense.normal_neighbours, kCount, 3, 500, false, "neighbours of a cloud's normals (one pass: reach at least theirs)"),
     VB_PROFILE_KEY(dense.max_normal_passes, kCount, 1, 64, false, "widening passes of a noisy cloud's normals"),
-    VB_PROFILE_KEY(dense.min_normal_neighbours, kCount, 3, 500, false, "one pass: points a cloud's normal is fitted to at least"),
+    VB_PROFILE_KEY(dense.min_normal_neighbours, kCount, 3, 500, false, "one pass: a normal's first fit, and its shortest reach (in points)"),
     VB_PROFILE_KEY(dense.normal_reach, "noise levels", 0.0, 20.0, false, "one pass: normals reach this far (0: not the noise)"),
     VB_PROFILE_KEY(dense.normal_curvature_reach, "radii of curvature", 0.01, 2.0, false, "but no farther than this on the posed template"),
     VB_PROFILE_KEY(dense.max_normal_neighbours, kCount, 3, 2000, false, "points such a normal is fitted to at most"),

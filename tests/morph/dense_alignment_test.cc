@@ -614,10 +614,10 @@ TEST_F(DenseAlignmentTest, TheTemplateIsNotPulledIntoWhatTheCloudDoesNotShow) {
   hole_error[1] /= over_holes;
   std::printf("over holes %.2f -> %.2f mm, all %.3f -> %.3f mm\n", 1000 * hole_error[0],
               1000 * hole_error[1], 1000 * error[0] / 3, 1000 * error[1] / 3);
-  // Measured: 9.04 -> 8.64 mm over the holes (x0.96) and 5.09 -> 5.09 mm over all vertices; 20
+  // Measured: 9.04 -> 8.64 mm over the holes (x0.96) and 5.094 -> 5.089 mm over all vertices; 20
   // to 46 pairs a morph are dropped. (With normals from each point's 24 nearest, 10.6 -> 9.1
   // mm: the normals held within the curvature leave the rim's pairs less to pull.)
-  EXPECT_LT(hole_error[1], 0.98 * hole_error[0]);
+  EXPECT_LT(hole_error[1], 0.975 * hole_error[0]);
   EXPECT_LT(hole_error[1], 0.0095);
   EXPECT_LT(error[1], 1.005 * error[0]);
 }
@@ -733,7 +733,7 @@ TEST_F(DenseAlignmentTest, CloudsDenseAgainstTheirNoiseGetNormalsThatReachBeyond
   }
   // Measured (mean vertex error over the two): 5.72 mm at 20,000 points; at 100,000, 5.90 mm
   // with normals reaching 4 sigma and 7.62 mm without (seed 1000002: 5.09, 4.74 and 7.04 mm).
-  EXPECT_LT(dense_error, 1.10 * sparse_error);
+  EXPECT_LT(dense_error, 1.06 * sparse_error);
   EXPECT_LT(dense_error, 0.86 * short_error);
   EXPECT_GT(short_error, 1.2 * sparse_error);
 }
