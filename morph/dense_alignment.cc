@@ -39,8 +39,8 @@ NormalReach WiderNormalReach(const geometry::TriangleMesh& posed, const Eigen::M
   if (!(density > 0.0)) return wider;
   const double area_count = std::numbers::pi * density;  // points within radius r: this x r^2
   const double fewest_reach = std::sqrt(options.min_normal_neighbours / area_count);
-  const double wanted_reach = std::max(options.normal_reach * std::max(noise, 0.0),
-                                       std::sqrt(options.normal_neighbours / area_count));
+  const double wanted_reach =
+      std::max(options.normal_reach * noise, std::sqrt(options.normal_neighbours / area_count));
   if (!(wanted_reach > fewest_reach)) return wider;
   const Eigen::VectorXd curvature = geometry::CurvatureSums(posed, posed.N);
   const std::vector<int> nearest = NearestEach(PointIndex(posed.V), points, pool);

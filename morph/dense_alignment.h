@@ -35,9 +35,8 @@ struct DenseOptions {
   /// keeps the first fit; a sparser patch (a hole's rim) may fit fewer points, 3 at least.
   /// normal_reach 0: the noise does not widen them; min_normal_neighbours equal to
   /// normal_neighbours: each point's normal_neighbours nearest where the shape allows no
-  /// more. A target's own normals (a mesh's faces)
-  /// are used as given, all turned when most point against the posed template's
-  /// (DenseResult::turned_normals).
+  /// more. A target's own normals (a mesh's faces) are used as given, all turned when most
+  /// point against the posed template's (DenseResult::turned_normals).
   int min_normal_neighbours = 12;
   double normal_reach = 4.0;
   double normal_curvature_reach = 0.5;

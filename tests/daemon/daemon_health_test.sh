@@ -59,16 +59,19 @@ with open(sys.argv[2], "w") as log:
 PY
   for _ in $(seq 50); do [ -S "$1" ] && break; sleep 0.1; done
 }
-run() {  # run <name> <config> [seconds [statuses]]: the daemon, a notify socket, an LCM listener
+start() {  # start <name> <config> <seconds> <statuses> <timeout>: notify socket, listener, daemon
   notify_listener "$work/$1.sock" "$work/$1.notify.log"
-  "$vbutcher" lcm-listen --url "$url" --count 0 --status-count "${4:-12}" --diagnostic-count 1 \
-    --status --diagnostics --timeout 20 >"$work/$1.listen.txt" &
-  local listener=$!
+  "$vbutcher" lcm-listen --url "$url" --count 0 --status-count "$4" --diagnostic-count 1 \
+    --status --diagnostics --timeout "$5" >"$work/$1.listen.txt" &
+  listener=$!
   sleep 0.3
-  NOTIFY_SOCKET="$work/$1.sock" "$daemon" --config "$work/$2" --run-seconds "${3:-5}" \
+  NOTIFY_SOCKET="$work/$1.sock" "$daemon" --config "$work/$2" --run-seconds "$3" \
     2>"$work/$1.daemon.log" &
   daemon_pid=$!
   [ -z "${during:-}" ] || (eval "$during")
+}
+run() {  # run <name> <config>: the daemon for 5 s, and 12 statuses heard
+  start "$1" "$2" 5 12 20
   wait $daemon_pid || fail "$1: the daemon exited with $?"
   wait $listener || true
 }
@@ -77,15 +80,7 @@ run() {  # run <name> <config> [seconds [statuses]]: the daemon, a notify socket
 # checks the rig slowly) and 2 s more, so that VB_STATUS carries the last outcome; the
 # listener hears every status until then.
 run_until() {
-  notify_listener "$work/$1.sock" "$work/$1.notify.log"
-  "$vbutcher" lcm-listen --url "$url" --count 0 --status-count 100000 --diagnostic-count 1 \
-    --status --diagnostics --timeout 90 >"$work/$1.listen.txt" &
-  local listener=$!
-  sleep 0.3
-  NOTIFY_SOCKET="$work/$1.sock" "$daemon" --config "$work/$2" --run-seconds 80 \
-    2>"$work/$1.daemon.log" &
-  daemon_pid=$!
-  [ -z "${during:-}" ] || (eval "$during")
+  start "$1" "$2" 80 100000 90
   local end=$((SECONDS + 60)) seen=0
   while [ $SECONDS -lt $end ] && kill -0 $daemon_pid 2>/dev/null; do
     seen=$(grep -c "^<[0-7]>virtualbutcherd: rig check\(:\| failed:\) " "$work/$1.daemon.log" \
