@@ -2,6 +2,10 @@
 // own rigs, plus the synthetic lamb.
 #include "tools/bench_shapes.h"
 
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -15,14 +19,11 @@
 #include <random>
 #include <stdexcept>
 
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
+#include "geometry/mesh_measures.h"
+#include "geometry/mesh_topology.h"
+#include "geometry/surface_sampling.h"
 #include "io/error.h"
 #include "io/mesh_io.h"
-#include "geometry/mesh_measures.h"
-#include "geometry/surface_sampling.h"
 #include "morph/coarse_alignment.h"
 #include "morph/dense_alignment.h"
 #include "morph/feature_association.h"
@@ -223,9 +224,13 @@ std::vector<BenchCase> BuildCases(const ShapeBenchOptions& options, bool* any_fa
                   .scanned = {shape.sources.begin() + 1, shape.sources.end()},
                   .rest_source = shape.sources.front(), .source_labels = {spec.rest.label}};
       for (const ShapePose& pose : spec.targets) c.source_labels.push_back(pose.label);
-      std::fprintf(stderr, "shape %s: %d source vertices -> closed template of %d vertices, %zu pairs (%.1f s)\n",
-                   spec.name.c_str(), shape.sources.front().num_vertices(), shape.template_mesh.num_vertices(),
-                   shape.targets.size(), Since(start));
+      std::fprintf(stderr,
+                   "shape %s: %d source vertices -> closed template of %d vertices and %d handles, "
+                   "%zu pairs (%.1f s)\n",
+                   spec.name.c_str(), shape.sources.front().num_vertices(),
+                   shape.template_mesh.num_vertices(),
+                   geometry::AnalyzeTopology(shape.template_mesh).genus(), shape.targets.size(),
+                   Since(start));
       cases.push_back(std::move(c));
     } catch (const std::exception& e) {  // InputError, or CGAL's own
       std::fprintf(stderr, "shape %s: cannot build: %s\n", spec.name.c_str(), e.what());

@@ -54,6 +54,20 @@ double AcrossIfNotMetres(const Eigen::Matrix3Xd& points) {
   throw InputError(message);
 }
 
+// Says on stderr, for @p command, when @p mesh (from @p name) is one closed surface with
+// handles: the morph's deformation graph runs across them, so parts joined there move as one.
+void WarnOfHandles(const char* command, const std::string& name,
+                   const geometry::TriangleMesh& mesh) {
+  const geometry::TopologyReport topology = geometry::AnalyzeTopology(mesh);
+  if (!topology.is_single_closed_surface() || topology.genus() <= 0) return;
+  std::fprintf(stderr,
+               "vbutcher: %s: warning: %s has %d handle%s (Euler characteristic %d): parts that "
+               "touch are joined (a hand on a thigh, two legs' tips), and the morph moves them "
+               "as one; a template made from a pose in which no parts touch has none\n",
+               command, name.c_str(), topology.genus(), topology.genus() == 1 ? "" : "s",
+               topology.euler_characteristic());
+}
+
 // How unevenly a mesh's vertices cover its surface: the 90th over the 10th percentile of the
 // vertices' areas (geometry::VertexAreas); vertices no face uses are left out. Infinite when
 // fewer than 10 vertices have area.
@@ -155,6 +169,7 @@ int RunMorphCommand(const MorphCommandOptions& options) {
     annotations = std::move(artifact.annotations);
   } else {
     const geometry::TriangleMesh mesh = io::ReadMesh(options.template_path);
+    WarnOfHandles("morph", options.template_path.string(), mesh);
     if (!options.annotations_path.empty()) {
       annotations = io::LoadAnnotations(options.annotations_path);
       io::CheckAnnotationsFit(annotations, mesh, options.annotations_path.string());
@@ -299,10 +314,12 @@ void Describe(const morph::TemplateArtifact& a) {
   const morph::TemplateModel& m = a.model;
   std::printf(
       "template %s version %d: %d vertices, %d faces, size %.3f m; skeleton %d nodes, %d "
-      "terminals, %d junctions; deformation graph %d nodes, %zu edges, %zu bridges; %zu cuts\n",
+      "terminals, %d junctions; deformation graph %d nodes, %zu edges, %zu bridges; %d handles; "
+      "%zu cuts\n",
       a.template_id.c_str(), a.template_version, m.mesh.num_vertices(), m.mesh.num_faces(), m.size,
       m.skeleton.num_nodes(), m.features.num_terminals(), m.features.num_junctions(),
-      m.graph.num_nodes(), m.graph.edges.size(), m.graph.bridges.size(), a.annotations.cuts.size());
+      m.graph.num_nodes(), m.graph.edges.size(), m.graph.bridges.size(),
+      geometry::AnalyzeTopology(m.mesh).genus(), a.annotations.cuts.size());
 }
 
 double LoadSeconds(const std::filesystem::path& path, morph::TemplateArtifact* out) {
@@ -334,6 +351,7 @@ int RunTemplateCompile(const TemplateCompileOptions& options) {
                  "size\n",
                  options.template_path.string().c_str(), across, check.min_size, check.max_size);
   }
+  WarnOfHandles("template compile", options.template_path.string(), mesh);
   morph::SaveTemplateArtifact(options.out_path, artifact);
   morph::TemplateArtifact back;
   const double load_s = LoadSeconds(options.out_path, &back);
@@ -399,6 +417,7 @@ int RunTemplateWrap(const TemplateWrapOptions& options) {
     return 3;
   }
   io::WriteMesh(options.out_path, wrap);
+  WarnOfHandles("template wrap", options.out_path.string(), wrap);
   std::printf(
       "wrote %s: one closed surface; annotate this mesh, then `vbutcher template "
       "compile` it\n",

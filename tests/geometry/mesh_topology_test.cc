@@ -17,6 +17,14 @@ TEST(MeshTopologyTest, ClosedShapesAreOrientedManifoldsOfGenusZero) {
   }
 }
 
+TEST(MeshTopologyTest, ATorusHasOneHandle) {
+  const TopologyReport torus = AnalyzeTopology(test::Torus(1.0, 0.3, 24, 12));
+  EXPECT_TRUE(torus.is_single_closed_surface()) << torus.Describe();
+  EXPECT_EQ(torus.euler_characteristic(), 0);
+  EXPECT_EQ(torus.genus(), 1);
+  EXPECT_EQ(AnalyzeTopology(test::Sphere(1.0, 2)).genus(), 0);
+}
+
 TEST(MeshTopologyTest, FindsHolesFlipsAndLooseVertices) {
   TriangleMesh open = test::Box();
   open.F.conservativeResize(3, open.num_faces() - 1);

@@ -41,6 +41,7 @@ TEST(MarchingTetrahedraTopologyTest, TorusHasGenusOneAndSeparateBlobsStaySeparat
   geometry::TopologyReport r = geometry::AnalyzeTopology(mesh);
   EXPECT_TRUE(r.is_closed_manifold()) << r.Describe();
   EXPECT_EQ(r.euler_characteristic(), 0);
+  EXPECT_EQ(r.genus(), 1);
 
   const auto blobs = [](const Eigen::Vector3d& p) {
     return std::min((p - Eigen::Vector3d(-1, 0, 0)).norm(), (p - Eigen::Vector3d(1, 0, 0)).norm()) -

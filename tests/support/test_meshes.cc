@@ -1,7 +1,9 @@
 #include "tests/support/test_meshes.h"
 
 #include <array>
+#include <cmath>
 #include <map>
+#include <numbers>
 #include <utility>
 #include <vector>
 
@@ -29,6 +31,29 @@ geometry::TriangleMesh Tetrahedron() {
   m.F << 0, 0, 0, 1,  //
       2, 1, 3, 2,     //
       1, 3, 2, 3;
+  return m;
+}
+
+geometry::TriangleMesh Torus(double R, double r, int around, int across) {
+  geometry::TriangleMesh m;
+  m.V.resize(3, around * across);
+  m.F.resize(3, 2 * around * across);
+  auto id = [&](int i, int j) { return (i % around) * across + (j % across); };
+  for (int i = 0; i < around; ++i) {
+    const double u = 2.0 * std::numbers::pi * i / around;
+    for (int j = 0; j < across; ++j) {
+      const double v = 2.0 * std::numbers::pi * j / across;
+      m.V.col(id(i, j)) << (R + r * std::cos(v)) * std::cos(u), (R + r * std::cos(v)) * std::sin(u),
+          r * std::sin(v);
+    }
+  }
+  int f = 0;
+  for (int i = 0; i < around; ++i) {
+    for (int j = 0; j < across; ++j) {
+      m.F.col(f++) << id(i, j), id(i + 1, j), id(i + 1, j + 1);
+      m.F.col(f++) << id(i, j), id(i + 1, j + 1), id(i, j + 1);
+    }
+  }
   return m;
 }
 

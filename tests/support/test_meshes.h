@@ -12,5 +12,9 @@ geometry::TriangleMesh Tetrahedron();
 
 /// Sphere of radius r: a subdivided octahedron projected outward (closed, oriented).
 geometry::TriangleMesh Sphere(double r, int subdivisions);
+/// Torus about z: tube radius @p r round a circle of radius @p R, @p around by @p across
+/// quads, each split in two (closed, oriented outward, genus 1). @pre R > r > 0, around and
+/// across at least 3.
+geometry::TriangleMesh Torus(double R, double r, int around, int across);
 
 }  // namespace vb::test
