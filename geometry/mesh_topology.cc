@@ -22,6 +22,11 @@ struct HalfEdge {
 
 }  // namespace
 
+int TopologyReport::genus() const {
+  VB_DEMAND(is_single_closed_surface());
+  return (2 - euler_characteristic()) / 2;
+}
+
 std::string TopologyReport::Describe() const {
   std::string s =
       std::to_string(num_vertices) + " vertices, " + std::to_string(num_faces) + " faces";

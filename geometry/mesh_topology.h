@@ -21,11 +21,9 @@ struct TopologyReport {
   int components = 0;             ///< face-connected components
 
   int euler_characteristic() const { return num_vertices - num_edges + num_faces; }
-  /// Handles of a single closed, oriented surface, (2 - Euler characteristic) / 2: 0 for a
-  /// sphere, 1 for a torus. A body's surface has none; a mesh of a body has one where two of
-  /// its parts touch and are joined (a hand on a thigh, two legs' tips).
-  /// @pre is_single_closed_surface().
-  int genus() const { return (2 - euler_characteristic()) / 2; }
+  /// Handles of a single closed, oriented surface: (2 - Euler characteristic) / 2, 0 for a
+  /// sphere, 1 for a torus. @pre is_single_closed_surface().
+  int genus() const;
   /// Closed (watertight) and 2-manifold, no degenerate faces or loose vertices.
   bool is_closed_manifold() const {
     return boundary_edges == 0 && nonmanifold_edges == 0 && degenerate_faces == 0 &&

@@ -224,12 +224,17 @@ std::vector<BenchCase> BuildCases(const ShapeBenchOptions& options, bool* any_fa
                   .scanned = {shape.sources.begin() + 1, shape.sources.end()},
                   .rest_source = shape.sources.front(), .source_labels = {spec.rest.label}};
       for (const ShapePose& pose : spec.targets) c.source_labels.push_back(pose.label);
+      // Handles of the wrapped template (a closed surface's genus), or its defects when the
+      // wrap is not one closed surface (the template model then refuses it).
+      const geometry::TopologyReport topology = geometry::AnalyzeTopology(shape.template_mesh);
+      const std::string handles = topology.is_single_closed_surface()
+                                      ? std::to_string(topology.genus()) + " handle(s)"
+                                      : "not one closed surface: " + topology.Describe();
       std::fprintf(stderr,
-                   "shape %s: %d source vertices -> closed template of %d vertices and %d handles, "
-                   "%zu pairs (%.1f s)\n",
+                   "shape %s: %d source vertices -> template of %d vertices, %s, %zu pairs "
+                   "(%.1f s)\n",
                    spec.name.c_str(), shape.sources.front().num_vertices(),
-                   shape.template_mesh.num_vertices(),
-                   geometry::AnalyzeTopology(shape.template_mesh).genus(), shape.targets.size(),
+                   shape.template_mesh.num_vertices(), handles.c_str(), shape.targets.size(),
                    Since(start));
       cases.push_back(std::move(c));
     } catch (const std::exception& e) {  // InputError, or CGAL's own

@@ -55,15 +55,19 @@ double AcrossIfNotMetres(const Eigen::Matrix3Xd& points) {
 }
 
 // Says on stderr, for @p command, when @p mesh (from @p name) is one closed surface with
-// handles: the morph's deformation graph runs across them, so parts joined there move as one.
+// handles. A body's surface has none; a template has one where the wrap or the modeller
+// joined two parts that touch (or lie closer than the wrap's alpha) away from where they
+// already join, and the deformation graph, which links nodes along the surface, then ties
+// those parts together.
 void WarnOfHandles(const char* command, const std::string& name,
                    const geometry::TriangleMesh& mesh) {
   const geometry::TopologyReport topology = geometry::AnalyzeTopology(mesh);
   if (!topology.is_single_closed_surface() || topology.genus() <= 0) return;
   std::fprintf(stderr,
                "vbutcher: %s: warning: %s has %d handle%s (Euler characteristic %d): parts that "
-               "touch are joined (a hand on a thigh, two legs' tips), and the morph moves them "
-               "as one; a template made from a pose in which no parts touch has none\n",
+               "touch are joined there (a hand on a thigh, two legs' tips), and the morph ties "
+               "them together; a template made from a pose whose parts lie apart (farther than "
+               "the wrap's alpha) has none\n",
                command, name.c_str(), topology.genus(), topology.genus() == 1 ? "" : "s",
                topology.euler_characteristic());
 }
@@ -314,8 +318,8 @@ void Describe(const morph::TemplateArtifact& a) {
   const morph::TemplateModel& m = a.model;
   std::printf(
       "template %s version %d: %d vertices, %d faces, size %.3f m; skeleton %d nodes, %d "
-      "terminals, %d junctions; deformation graph %d nodes, %zu edges, %zu bridges; %d handles; "
-      "%zu cuts\n",
+      "terminals, %d junctions; deformation graph %d nodes, %zu edges, %zu bridges; %d "
+      "handle(s); %zu cuts\n",
       a.template_id.c_str(), a.template_version, m.mesh.num_vertices(), m.mesh.num_faces(), m.size,
       m.skeleton.num_nodes(), m.features.num_terminals(), m.features.num_junctions(),
       m.graph.num_nodes(), m.graph.edges.size(), m.graph.bridges.size(),
