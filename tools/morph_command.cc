@@ -316,14 +316,20 @@ int RunMorphCommand(const MorphCommandOptions& options) {
 namespace {
 void Describe(const morph::TemplateArtifact& a) {
   const morph::TemplateModel& m = a.model;
+  // A loaded artifact's mesh is not checked for topology, so the count is given only where it
+  // is one closed surface.
+  const geometry::TopologyReport topology = geometry::AnalyzeTopology(m.mesh);
+  const std::string handles = topology.is_single_closed_surface()
+                                  ? std::to_string(topology.genus()) + " handle(s)"
+                                  : std::string("not one closed surface");
   std::printf(
       "template %s version %d: %d vertices, %d faces, size %.3f m; skeleton %d nodes, %d "
-      "terminals, %d junctions; deformation graph %d nodes, %zu edges, %zu bridges; %d "
-      "handle(s); %zu cuts\n",
+      "terminals, %d junctions; deformation graph %d nodes, %zu edges, %zu bridges; %s; %zu "
+      "cuts\n",
       a.template_id.c_str(), a.template_version, m.mesh.num_vertices(), m.mesh.num_faces(), m.size,
       m.skeleton.num_nodes(), m.features.num_terminals(), m.features.num_junctions(),
-      m.graph.num_nodes(), m.graph.edges.size(), m.graph.bridges.size(),
-      geometry::AnalyzeTopology(m.mesh).genus(), a.annotations.cuts.size());
+      m.graph.num_nodes(), m.graph.edges.size(), m.graph.bridges.size(), handles.c_str(),
+      a.annotations.cuts.size());
 }
 
 double LoadSeconds(const std::filesystem::path& path, morph::TemplateArtifact* out) {
