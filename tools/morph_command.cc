@@ -54,14 +54,13 @@ double AcrossIfNotMetres(const Eigen::Matrix3Xd& points) {
   throw InputError(message);
 }
 
-// Says on stderr, for @p command, when @p mesh (from @p name) is one closed surface with
-// handles. A body's surface has none; a template has one where the wrap or the modeller
-// joined two parts that touch (or lie closer than the wrap's alpha) away from where they
+// Says on stderr, for @p command, when the mesh read from @p name, of @p topology, is one
+// closed surface with handles. A body's surface has none; a template has one where the wrap or the
+// modeller joined two parts that touch (or lie closer than the wrap's alpha) away from where they
 // already join, and the deformation graph, which links nodes along the surface, then ties
 // those parts together.
 void WarnOfHandles(const char* command, const std::string& name,
-                   const geometry::TriangleMesh& mesh) {
-  const geometry::TopologyReport topology = geometry::AnalyzeTopology(mesh);
+                   const geometry::TopologyReport& topology) {
   if (!topology.is_single_closed_surface() || topology.genus() <= 0) return;
   std::fprintf(stderr,
                "vbutcher: %s: warning: %s has %d handle%s (Euler characteristic %d): parts that "
@@ -173,7 +172,7 @@ int RunMorphCommand(const MorphCommandOptions& options) {
     annotations = std::move(artifact.annotations);
   } else {
     const geometry::TriangleMesh mesh = io::ReadMesh(options.template_path);
-    WarnOfHandles("morph", options.template_path.string(), mesh);
+    WarnOfHandles("morph", options.template_path.string(), geometry::AnalyzeTopology(mesh));
     if (!options.annotations_path.empty()) {
       annotations = io::LoadAnnotations(options.annotations_path);
       io::CheckAnnotationsFit(annotations, mesh, options.annotations_path.string());
@@ -361,7 +360,8 @@ int RunTemplateCompile(const TemplateCompileOptions& options) {
                  "size\n",
                  options.template_path.string().c_str(), across, check.min_size, check.max_size);
   }
-  WarnOfHandles("template compile", options.template_path.string(), mesh);
+  WarnOfHandles("template compile", options.template_path.string(),
+                geometry::AnalyzeTopology(mesh));
   morph::SaveTemplateArtifact(options.out_path, artifact);
   morph::TemplateArtifact back;
   const double load_s = LoadSeconds(options.out_path, &back);
@@ -427,7 +427,7 @@ int RunTemplateWrap(const TemplateWrapOptions& options) {
     return 3;
   }
   io::WriteMesh(options.out_path, wrap);
-  WarnOfHandles("template wrap", options.out_path.string(), wrap);
+  WarnOfHandles("template wrap", options.out_path.string(), topology);
   std::printf(
       "wrote %s: one closed surface; annotate this mesh, then `vbutcher template "
       "compile` it\n",
