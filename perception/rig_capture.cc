@@ -463,8 +463,15 @@ void RigCapture::UpdateHealth(Camera* cam, std::int64_t now) {
   Close(cam);
   ++s.device_reopens;
   const CameraHealth before = s.health;
-  Open(cam);
-  if (cam->streaming) SetHealth(cam, before, now, nullptr);  // healthy only on a good frame
+  Open(cam);  // a device that cannot be opened is tried again after the recovery period
+  if (cam->streaming) {
+    SetHealth(cam, before, now, nullptr);  // healthy only on a good frame
+    // As long for its first frame as a device opened at start: a live camera can take longer
+    // than the recovery period, and would otherwise be reopened before every first frame.
+    cam->next_recovery_ns =
+        now + std::int64_t{std::max(options_.recovery_period_ms, options_.first_frame_timeout_ms)} *
+                  1000000;
+  }
   cam->recovery_step = 1;
 }
 

@@ -43,6 +43,8 @@ VirtualScene LoadVirtualScene(const std::filesystem::path& path) {
       r.Fail(root["carcass"], "carcass", "no file " + scene.carcass_path.string());
   }
   if (root["fps"]) scene.fps = r.IntInRange(root["fps"], "fps", 1, 120);
+  if (root["start_delay_ms"])
+    scene.start_delay_ms = r.IntInRange(root["start_delay_ms"], "start_delay_ms", 0, 10000);
   if (root["floor_z_m"]) scene.floor_z_m = r.InRange(root["floor_z_m"], "floor_z_m", -20, 20);
   if (const YAML::Node noise = root["noise"]) {
     if (!noise.IsMap()) r.Fail(noise, "noise", "expected a mapping");
@@ -82,6 +84,8 @@ void SaveVirtualScene(const std::filesystem::path& path, const VirtualScene& sce
   if (!scene.carcass_path.empty())
     out << YAML::Key << "carcass" << YAML::Value << scene.carcass_path.string();
   out << YAML::Key << "fps" << YAML::Value << scene.fps;
+  if (scene.start_delay_ms != 0)
+    out << YAML::Key << "start_delay_ms" << YAML::Value << scene.start_delay_ms;
   if (scene.floor_z_m) out << YAML::Key << "floor_z_m" << YAML::Value << *scene.floor_z_m;
   out << YAML::Key << "noise" << YAML::Value << YAML::Flow << YAML::BeginMap;
   out << YAML::Key << "enabled" << YAML::Value << scene.noise.enabled;

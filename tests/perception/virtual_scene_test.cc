@@ -31,6 +31,7 @@ TEST_F(VirtualSceneTest, RoundTrips) {
   VirtualScene scene;
   scene.rig_path = "rig.yaml";
   scene.fps = 15;
+  scene.start_delay_ms = 450;
   scene.floor_z_m = -2.0;
   scene.seed = 9;
   scene.noise.enabled = false;
@@ -39,6 +40,7 @@ TEST_F(VirtualSceneTest, RoundTrips) {
   const VirtualScene back = LoadVirtualScene(dir_ / "scene.yaml");
   EXPECT_EQ(back.rig.cameras.size(), 4u);
   EXPECT_EQ(back.fps, 15);
+  EXPECT_EQ(back.start_delay_ms, 450);
   EXPECT_EQ(*back.floor_z_m, -2.0);
   EXPECT_EQ(back.seed, 9u);
   EXPECT_FALSE(back.noise.enabled);
@@ -54,6 +56,8 @@ TEST_F(VirtualSceneTest, NamesWhatIsWrong) {
               HasSubstr("faults.VB0001: 'melted' is not one of none, frozen, missing"));
   EXPECT_THAT(Error("rig: rig.yaml\ncarcass: nowhere.ply\n"), HasSubstr("carcass: no file"));
   EXPECT_THAT(Error("rig: rig.yaml\nfps: 0\n"), HasSubstr("fps: value 0 is outside [1, 120]"));
+  EXPECT_THAT(Error("rig: rig.yaml\nstart_delay_ms: -1\n"),
+              HasSubstr("start_delay_ms: value -1 is outside [0, 10000]"));
   EXPECT_THAT(Error("rig: other.yaml\n"), HasSubstr("other.yaml: cannot open rig calibration file"));
 }
 

@@ -41,6 +41,16 @@ class VirtualRigTest : public ::testing::Test {
     scene_.faults = scene.faults;
   }
 
+  /// Rewrites the scene so every stream started from now on gives its first frame @p ms later.
+  void SetStartDelay(int ms) {
+    perception::VirtualScene scene = scene_;
+    scene.rig_path = "rig.yaml";
+    scene.carcass_path = "carcass.ply";
+    scene.start_delay_ms = ms;
+    perception::SaveVirtualScene(files_.scene, scene);
+    scene_.start_delay_ms = ms;
+  }
+
   static inline std::unique_ptr<perception::CarcassTemplate> carcass_;
   TempDir dir_;
   perception::VirtualRigFiles files_;
