@@ -33,11 +33,17 @@ MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
     const double limit =
         (options.explained_distance + options.noise_allowance * dense.noise) * size;
     long far = 0;
+    std::vector<double> distances(static_cast<std::size_t>(target.cols()));
     for (Eigen::Index i = 0; i < target.cols(); ++i) {
       const int v = nearest_vertex[static_cast<std::size_t>(i)];
-      if ((dense.mesh.V.col(v) - target.col(i)).norm() > limit) ++far;
+      const double d = (dense.mesh.V.col(v) - target.col(i)).norm();
+      distances[static_cast<std::size_t>(i)] = d;
+      if (d > limit) ++far;
     }
     check.unexplained = static_cast<double>(far) / static_cast<double>(target.cols());
+    const auto p99 = distances.begin() + static_cast<std::ptrdiff_t>(0.99 * (distances.size() - 1));
+    std::nth_element(distances.begin(), p99, distances.end());
+    check.reach = size > 0 ? *p99 / size : 0.0;
   }
 
   std::vector<double> logs;

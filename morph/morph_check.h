@@ -21,6 +21,11 @@ struct MorphCheck {
   /// noise_allowance times the noise the dense stage estimated) from the morphed template's
   /// vertices: the part of the carcass the morph did not cover.
   double unexplained = 0.0;
+  /// 99th percentile of the target points' distances to the morphed template's nearest
+  /// vertices, in template sizes: how far the farthest part of the carcass the morph left
+  /// uncovered lies (a limb the template put elsewhere). Reported; it does not lower the
+  /// confidence (docs/decisions.md, "Measured: what the check makes of the shape benchmark").
+  double reach = 0.0;
   /// 90th percentile of |log(edge length morphed / edge length rest)| after the global
   /// scale: how far the morph had to stretch the template to fit.
   double stretch = 0.0;

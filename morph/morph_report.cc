@@ -135,9 +135,10 @@ void WriteCutsReport(const std::filesystem::path& path, const io::Annotations& a
          {"confidence", c.confidence},
          {"line", line}});
   }
-  j["check"] = {{"ambiguity", check.ambiguity},   {"unexplained", check.unexplained},
-                {"stretch", check.stretch},       {"size", check.size},
-                {"confidence", check.confidence}, {"concern", check.concern}};
+  j["check"] = {{"ambiguity", check.ambiguity}, {"unexplained", check.unexplained},
+                {"reach", check.reach},         {"stretch", check.stretch},
+                {"size", check.size},           {"confidence", check.confidence},
+                {"concern", check.concern}};
   j["cuts"] = out_cuts;
   nlohmann::json out_parts = nlohmann::json::array();
   for (std::size_t k = 0; k < parts.size(); ++k) {

@@ -55,6 +55,9 @@ struct Row {
   bool ok = false;
   double mean_err_rel = std::nan(""), max_err_rel = std::nan(""), placement_err_deg = std::nan("");
   double seconds = 0;
+  /// The whole-morph check (MorphCheck, default limits) of the full morph; NaN on other rows.
+  double confidence = std::nan(""), ambiguity = std::nan(""), unexplained = std::nan("");
+  double reach = std::nan(""), stretch = std::nan(""), size = std::nan("");
 };
 
 double Since(std::chrono::steady_clock::time_point start) {
@@ -453,6 +456,15 @@ int RunShapeBench(const ShapeBenchOptions& options) {
             full_row.seconds = coarse_row.seconds + dense.total_seconds;
             if (dense.ok) {
               Score(dense.mesh.V, placed.V, rest, &full_row);
+              // What the pipeline would have made of it without the truth (not timed).
+              const morph::MorphCheck check =
+                  morph::CheckMorph(model, coarse, dense, morph::MorphOptions{}.check);
+              full_row.confidence = check.confidence;
+              full_row.ambiguity = check.ambiguity;
+              full_row.unexplained = check.unexplained;
+              full_row.reach = check.reach;
+              full_row.stretch = check.stretch;
+              full_row.size = check.size;
               if (t == 0 && variant == options.variants.front() &&
                   sigma_mm == options.sigmas_mm[options.sigmas_mm.size() / 2]) {
                 WriteXyz(examples / (c.name + "_target.xyz"), points);
@@ -486,13 +498,16 @@ int RunShapeBench(const ShapeBenchOptions& options) {
     std::ofstream csv(options.csv);
     csv << "shape,family,source,pair,pose_change_deg,sigma_mm,variant,method,points,"
            "template_vertices,wrap_alpha,wrap_offset,ok,mean_err_rel,max_err_rel,placement_err_deg,"
-           "seconds\n";
+           "seconds,confidence,ambiguity,unexplained,reach,stretch,size\n";
     for (const Row& r : rows) {
       csv << r.shape << ',' << r.family << ',' << r.source << ',' << r.pair << ','
           << r.pose_change_deg << ',' << r.sigma_mm << ',' << r.variant << ',' << r.method << ','
-          << r.points << ',' << r.template_vertices << ',' << (r.shape == "lamb" ? 0.0 : options.wrap_alpha)
-          << ',' << (r.shape == "lamb" ? 0.0 : options.wrap_offset) << ',' << r.ok << ',' << r.mean_err_rel << ',' << r.max_err_rel << ','
-          << r.placement_err_deg << ',' << r.seconds << '\n';
+          << r.points << ',' << r.template_vertices << ','
+          << (r.shape == "lamb" ? 0.0 : options.wrap_alpha) << ','
+          << (r.shape == "lamb" ? 0.0 : options.wrap_offset) << ',' << r.ok << ',' << r.mean_err_rel
+          << ',' << r.max_err_rel << ',' << r.placement_err_deg << ',' << r.seconds << ','
+          << r.confidence << ',' << r.ambiguity << ',' << r.unexplained << ',' << r.reach << ','
+          << r.stretch << ',' << r.size << '\n';
     }
     if (!csv) throw std::runtime_error("cannot write " + options.csv.string());
   }

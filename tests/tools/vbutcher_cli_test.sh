@@ -225,6 +225,10 @@ import json, math, sys
 check = json.load(open(sys.argv[1]))["check"]
 if not (math.isfinite(check["size"]) and 0.5 < check["size"] < 2.0):
     sys.exit(f"FAIL: cuts JSON check.size {check['size']} is not near 1")
+# The farthest target points of a right morph lie within the noise (2 mm; measured 0.0069 of
+# the template's size).
+if not 0 < check["reach"] < 0.010:
+    sys.exit(f"FAIL: cuts JSON check.reach {check['reach']} is not that of a right morph")
 PY
 /usr/bin/python3 - "$work/set/template.ply" "$work/template_mm.ply" <<'PY' || failures=$((failures + 1))
 import struct, sys
