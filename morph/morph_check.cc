@@ -43,7 +43,7 @@ MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
     check.unexplained = static_cast<double>(far) / static_cast<double>(target.cols());
     const auto p99 = distances.begin() + static_cast<std::ptrdiff_t>(0.99 * (distances.size() - 1));
     std::nth_element(distances.begin(), p99, distances.end());
-    check.reach = size > 0 ? *p99 / size : 0.0;
+    if (size > 0) check.reach = *p99 / size;
   }
 
   std::vector<double> logs;

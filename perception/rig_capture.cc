@@ -466,11 +466,14 @@ void RigCapture::UpdateHealth(Camera* cam, std::int64_t now) {
   Open(cam);  // a device that cannot be opened is tried again after the recovery period
   if (cam->streaming) {
     SetHealth(cam, before, now, nullptr);  // healthy only on a good frame
-    // As long for its first frame as a device opened at start: a live camera can take longer
-    // than the recovery period, and would otherwise be reopened before every first frame.
+    // As long for its first frame, from its opening, as a device opened at start: a live
+    // camera can take longer than the recovery period, and would otherwise be reopened before
+    // every first frame. (A stream restart has the recovery period: a slow one goes on to a
+    // reopen, once.)
     cam->next_recovery_ns =
-        now + std::int64_t{std::max(options_.recovery_period_ms, options_.first_frame_timeout_ms)} *
-                  1000000;
+        cam->opened_ns +
+        std::int64_t{std::max(options_.recovery_period_ms, options_.first_frame_timeout_ms)} *
+            1000000;
   }
   cam->recovery_step = 1;
 }

@@ -27,7 +27,7 @@ enum class CameraFault {
 /// rig: rig.yaml            # calibration (relative paths are from this file's folder)
 /// carcass: carcass.ply     # mesh in the rig frame; optional (an empty hook)
 /// fps: 30
-/// start_delay_ms: 0        # optional: a stream's first frame comes this long after it starts
+/// start_delay_ms: 0        # optional: a stream's first frame comes this much later (ms)
 /// floor_z_m: -2.2          # optional floor plane
 /// noise: {enabled: true, seed: 1}
 /// faults: {VB0002: frozen} # per serial: none | frozen | missing
@@ -38,7 +38,7 @@ struct VirtualScene {
   std::filesystem::path rig_path;
   std::filesystem::path carcass_path;  ///< empty: nothing on the hook
   int fps = 30;
-  int start_delay_ms = 0;  ///< a live camera takes a while from start to its first frame
+  int start_delay_ms = 0;  ///< ms from a stream's start to one frame period before its first frame
   std::optional<double> floor_z_m;
   DepthNoiseOptions noise;
   std::uint64_t seed = 1;

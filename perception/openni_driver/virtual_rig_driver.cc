@@ -244,11 +244,11 @@ class DepthStream : public oni::driver::StreamBase {
     std::vector<std::uint16_t> image(static_cast<std::size_t>(k.width) * k.height, 0);
     std::uint64_t rendered_version = 0;
     const auto start = std::chrono::steady_clock::now();
-    // The first frame is due start_delay_ms after the start (stop() still returns promptly).
-    const auto first = start + std::chrono::milliseconds(watcher_->Current()->scene.start_delay_ms);
-    while (running_ && std::chrono::steady_clock::now() < first)
+    // The first frame comes one frame period after start_delay_ms (stop() still returns
+    // promptly).
+    auto next = start + std::chrono::milliseconds(watcher_->Current()->scene.start_delay_ms);
+    while (running_ && std::chrono::steady_clock::now() < next)
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    auto next = first == start ? start : first - std::chrono::microseconds(1000000 / mode_.fps);
     int index = 0;
     while (running_) {
       const auto snapshot = watcher_->Current();

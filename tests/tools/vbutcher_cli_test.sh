@@ -225,8 +225,8 @@ import json, math, sys
 check = json.load(open(sys.argv[1]))["check"]
 if not (math.isfinite(check["size"]) and 0.5 < check["size"] < 2.0):
     sys.exit(f"FAIL: cuts JSON check.size {check['size']} is not near 1")
-# The farthest target points of a right morph lie within the noise (2 mm; measured 0.0069 of
-# the template's size).
+# The reach of a right morph of a cloud with 2 mm noise: the vertex spacing and the noise
+# (measured 0.0069 of the template's size).
 if not 0 < check["reach"] < 0.010:
     sys.exit(f"FAIL: cuts JSON check.reach {check['reach']} is not that of a right morph")
 PY
