@@ -33,22 +33,22 @@ class VirtualRigTest : public ::testing::Test {
 
   /// Rewrites the scene with @p fault on camera @p serial (the driver notices within 50 ms).
   void SetFault(const std::string& serial, perception::CameraFault fault) {
-    perception::VirtualScene scene = scene_;
-    scene.rig_path = "rig.yaml";
-    scene.carcass_path = "carcass.ply";
-    scene.faults[serial] = fault;
-    perception::SaveVirtualScene(files_.scene, scene);
-    scene_.faults = scene.faults;
+    scene_.faults[serial] = fault;
+    SaveScene();
   }
 
   /// Rewrites the scene so every stream started from now on gives its first frame @p ms later.
   void SetStartDelay(int ms) {
+    scene_.start_delay_ms = ms;
+    SaveScene();
+  }
+
+  /// Writes scene_ as the driver's scene file, naming the rig and carcass beside it.
+  void SaveScene() const {
     perception::VirtualScene scene = scene_;
     scene.rig_path = "rig.yaml";
     scene.carcass_path = "carcass.ply";
-    scene.start_delay_ms = ms;
     perception::SaveVirtualScene(files_.scene, scene);
-    scene_.start_delay_ms = ms;
   }
 
   static inline std::unique_ptr<perception::CarcassTemplate> carcass_;
