@@ -7,8 +7,8 @@ namespace vb::daemon {
 
 /// virtualbutcherd's fixed memory budget. At start the daemon reserves one arena of
 /// `memory.arena_mib` (config) from the OS; its loop threads (main, capture, job) then take
-/// every allocation from that arena: their own, Ceres' per-solve problem and linear solver,
-/// Eigen's temporaries, LCM's message buffers. Nothing a loop thread does after start asks the
+/// every allocation from that arena: their own, the morph's per-solve matrices, Eigen's
+/// temporaries, LCM's message buffers. Nothing a loop thread does after start asks the
 /// process heap or the OS for memory, so a job cannot grow the daemon, and a steady state
 /// that allocates nothing new is something a test can check (`tests/daemon/memory_budget_test`,
 /// and per job in the daemon's log).

@@ -96,14 +96,8 @@ struct ArticulationOptions {
   double limb_swing_cap = 0.05;
   /// The data weight per graph node: each pair's weight is w_data times the node count over
   /// the pair count, so the balance with the regularisers does not depend on the sampling.
-  /// Conjugate gradients: with hundreds of pairs each coupling several nodes they reach the
-  /// same poses as sparse Cholesky in half the time (docs/decisions.md).
   EmbeddedDeformationOptions deformation{
-      .w_data = 10.0,
-      .max_iterations = 10,
-      .linear_solver = EmbeddedDeformationOptions::LinearSolver::kConjugateGradients,
-      .function_tolerance = 1e-4,
-      .deadline = {}};
+      .w_data = 10.0, .max_iterations = 10, .function_tolerance = 1e-4, .deadline = {}};
 };
 
 /// Both skeletons' limbs (TerminalBranches), each sampled at kSamples evenly spaced arc

@@ -105,15 +105,13 @@ struct DenseOptions {
   /// multiplied by the noise weighting above. w_rot is a hundredth of the coarse stage's:
   /// E_rot holds each node's affine to a rotation, i.e. keeps the template's proportions,
   /// while carcasses differ from it by each part's length (E_reg still keeps neighbouring
-  /// nodes' affines alike). Each round's solve (CGNR) stops once a step gains less than 1e-4
+  /// nodes' affines alike). Each round's solve stops once a step gains less than 1e-4
   /// of the cost: the next round re-associates anyway.
-  EmbeddedDeformationOptions deformation{
-      .w_data = 100.0,
-      .w_rot = 0.01,
-      .max_iterations = 20,
-      .linear_solver = EmbeddedDeformationOptions::LinearSolver::kConjugateGradients,
-      .function_tolerance = 1e-4,
-      .deadline = {}};
+  EmbeddedDeformationOptions deformation{.w_data = 100.0,
+                                         .w_rot = 0.01,
+                                         .max_iterations = 20,
+                                         .function_tolerance = 1e-4,
+                                         .deadline = {}};
 };
 
 struct DenseRound {

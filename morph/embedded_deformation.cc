@@ -1,8 +1,9 @@
 #include "morph/embedded_deformation.h"
 
-#include <ceres/ceres.h>
-
+#include <Eigen/Cholesky>
+#include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 
@@ -11,123 +12,351 @@
 namespace vb::morph {
 namespace {
 
-// Eq. (6), one node: the entries of R^T R - I, off-diagonal ones counted twice as in the
-// Frobenius norm.
-struct RotationCost {
-  explicit RotationCost(double weight) : w(std::sqrt(weight)) {}
-  template <typename T>
-  bool operator()(const T* R, T* r) const {
-    auto column_dot = [R](int a, int b) {
-      return R[a] * R[b] + R[3 + a] * R[3 + b] + R[6 + a] * R[6 + b];
-    };
-    const T root2(std::sqrt(2.0));
-    r[0] = w * (column_dot(0, 0) - T(1));
-    r[1] = w * (column_dot(1, 1) - T(1));
-    r[2] = w * (column_dot(2, 2) - T(1));
-    r[3] = w * root2 * column_dot(0, 1);
-    r[4] = w * root2 * column_dot(0, 2);
-    r[5] = w * root2 * column_dot(1, 2);
-    return true;
-  }
-  double w;
-};
+constexpr int kB = 12;  // unknowns per node: R row-major (9), then t (3)
+constexpr int kMaxLinearIterations = 500;
+using Block = Eigen::Matrix<double, kB, kB>;
 
-// Eq. (7), one directed edge (i, j): node j's transform should predict where node i goes.
-struct RegularisationCost {
-  RegularisationCost(const Eigen::Vector3d& gi, const Eigen::Vector3d& gj, double weight)
-      : d(gi - gj), gi(gi), gj(gj), w(std::sqrt(weight)) {}
-  template <typename T>
-  bool operator()(const T* Rj, const T* tj, const T* ti, T* r) const {
-    for (int a = 0; a < 3; ++a) {
-      const T rotated = Rj[3 * a] * d.x() + Rj[3 * a + 1] * d.y() + Rj[3 * a + 2] * d.z();
-      r[a] = w * (rotated + gj[a] + tj[a] - (gi[a] + ti[a]));
-    }
-    return true;
-  }
-  Eigen::Vector3d d, gi, gj;
-  double w;
-};
-
-// Eq. (8), one bridge (j, k): R_j^T R_k - I.
-struct RigidityCost {
-  explicit RigidityCost(double weight) : w(std::sqrt(weight)) {}
-  template <typename T>
-  bool operator()(const T* Rj, const T* Rk, T* r) const {
-    for (int a = 0; a < 3; ++a) {
-      for (int b = 0; b < 3; ++b) {
-        const T dot = Rj[a] * Rk[b] + Rj[3 + a] * Rk[3 + b] + Rj[6 + a] * Rk[6 + b];
-        r[3 * a + b] = w * (dot - T(a == b ? 1.0 : 0.0));
-      }
-    }
-    return true;
-  }
-  double w;
-};
-
-// Eqs. (5) and (14): the deformed point (eq. 9) against its target, or its target's plane.
-// The residual is linear in the node transforms, so its Jacobian is written out rather than
-// left to DynamicAutoDiffCostFunction (whose evaluation cost grows with the node count).
-class DataCost final : public ceres::CostFunction {
+// The Gauss-Newton matrix J^T J of the node transforms, symmetric, as 12 x 12 blocks: the
+// pairs of nodes (i <= j) some term couples, in order of i then j. Memory grows with the
+// pairs, not with the square of the node count.
+class BlockMatrix {
  public:
-  DataCost(const PointConstraint& c, const DeformationGraph& graph, double weight)
-      : c_(c), w_(std::sqrt(weight * c.weight)), plane_(!c.normal.isZero()) {
-    for (int node : c.nodes) {
-      mutable_parameter_block_sizes()->push_back(9);
-      mutable_parameter_block_sizes()->push_back(3);
-      offsets_.push_back(c.rest - graph.nodes.col(node));
-      anchors_.push_back(graph.nodes.col(node));
-    }
-    set_num_residuals(plane_ ? 1 : 3);
+  // @p pairs: node pairs, either order, repeats allowed; every diagonal block is added.
+  BlockMatrix(int n, std::vector<std::array<int, 2>> pairs)
+      : n_(n), row_start_(static_cast<std::size_t>(n) + 1, 0) {
+    for (auto& [i, j] : pairs)
+      if (i > j) std::swap(i, j);
+    for (int i = 0; i < n; ++i) pairs.push_back({i, i});
+    std::sort(pairs.begin(), pairs.end());
+    pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+    pairs_ = std::move(pairs);
+    for (const auto& [i, j] : pairs_) ++row_start_[static_cast<std::size_t>(i) + 1];
+    for (std::size_t i = 0; i < static_cast<std::size_t>(n); ++i)
+      row_start_[i + 1] += row_start_[i];
+    blocks_.assign(pairs_.size(), Block::Zero());
   }
 
-  bool Evaluate(double const* const* blocks, double* residuals, double** jacobians) const override {
-    Eigen::Vector3d p = Eigen::Vector3d::Zero();
-    for (std::size_t k = 0; k < c_.nodes.size(); ++k) {
-      const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> R(blocks[2 * k]);
-      const Eigen::Map<const Eigen::Vector3d> t(blocks[2 * k + 1]);
-      p += c_.weights[k] * (R * offsets_[k] + anchors_[k] + t);
+  int num_nodes() const { return n_; }
+  // Block (i, j), i <= j, of a pair given to the constructor.
+  Block& upper(int i, int j) { return blocks_[Slot(i, j)]; }
+  const Block& diagonal(int i) const { return blocks_[Slot(i, i)]; }
+  // Adds @p H as block (i, j) of the full matrix (and so its transpose as (j, i)).
+  template <typename M>
+  void Add(int i, int j, const M& H) {
+    if (i <= j)
+      upper(i, j) += H;
+    else
+      upper(j, i) += H.transpose();
+  }
+  void CopyValuesFrom(const BlockMatrix& other) { blocks_ = other.blocks_; }
+
+  // y = (this + diag(damping)) x.
+  void Multiply(const Eigen::VectorXd& damping, const Eigen::VectorXd& x,
+                Eigen::VectorXd* y) const {
+    *y = damping.cwiseProduct(x);
+    for (std::size_t s = 0; s < pairs_.size(); ++s) {
+      const auto [i, j] = pairs_[s];
+      const Block& B = blocks_[s];
+      y->segment<kB>(kB * i).noalias() += B * x.segment<kB>(kB * j);
+      if (i != j) y->segment<kB>(kB * j).noalias() += B.transpose() * x.segment<kB>(kB * i);
     }
-    if (plane_) {
-      residuals[0] = w_ * c_.normal.dot(p - c_.target);
-    } else {
-      Eigen::Map<Eigen::Vector3d> r(residuals);
-      r = w_ * (p - c_.target);
-    }
-    if (jacobians == nullptr) return true;
-    for (std::size_t k = 0; k < c_.nodes.size(); ++k) {
-      const double s = w_ * c_.weights[k];
-      double* dR = jacobians[2 * k];
-      double* dt = jacobians[2 * k + 1];
-      if (plane_) {
-        // r = w n . (sum_k w_k (R_k d_k + g_k + t_k) - target)
-        if (dR != nullptr)
-          for (int a = 0; a < 3; ++a)
-            for (int b = 0; b < 3; ++b) dR[3 * a + b] = s * c_.normal[a] * offsets_[k][b];
-        if (dt != nullptr)
-          for (int a = 0; a < 3; ++a) dt[a] = s * c_.normal[a];
-      } else {
-        // Row a of the residual depends on row a of R_k and on t_k[a] only.
-        if (dR != nullptr) {
-          std::fill(dR, dR + 27, 0.0);
-          for (int a = 0; a < 3; ++a)
-            for (int b = 0; b < 3; ++b) dR[9 * a + 3 * a + b] = s * offsets_[k][b];
-        }
-        if (dt != nullptr) {
-          std::fill(dt, dt + 9, 0.0);
-          for (int a = 0; a < 3; ++a) dt[3 * a + a] = s;
-        }
-      }
-    }
-    return true;
   }
 
  private:
-  const PointConstraint& c_;
-  double w_;
-  bool plane_;
-  std::vector<Eigen::Vector3d> offsets_;  // rest - g_k
-  std::vector<Eigen::Vector3d> anchors_;  // g_k
+  std::size_t Slot(int i, int j) const {
+    const auto first = pairs_.begin() + row_start_[static_cast<std::size_t>(i)];
+    const auto last = pairs_.begin() + row_start_[static_cast<std::size_t>(i) + 1];
+    const auto it = std::lower_bound(first, last, std::array<int, 2>{i, j});
+    VB_DEMAND(it != last && (*it)[1] == j);
+    return static_cast<std::size_t>(it - pairs_.begin());
+  }
+  int n_;
+  std::vector<int> row_start_;  // per node, its first pair; then the pair count
+  std::vector<std::array<int, 2>> pairs_;
+  std::vector<Block> blocks_;
 };
+
+// E_rot's six residuals of one node (eq. 6: the entries of R^T R - I, each off-diagonal one
+// standing for two) and their Jacobian in R (row-major).
+struct RotationTerm {
+  RotationTerm(const double* R, double weight) {
+    static constexpr int kPairs[6][2] = {{0, 0}, {1, 1}, {2, 2}, {0, 1}, {0, 2}, {1, 2}};
+    J.setZero();
+    for (int q = 0; q < 6; ++q) {
+      const int a = kPairs[q][0], b = kPairs[q][1];
+      const double w = std::sqrt(q < 3 ? weight : 2.0 * weight);
+      double dot = 0.0;
+      for (int i = 0; i < 3; ++i) {
+        dot += R[3 * i + a] * R[3 * i + b];
+        J(q, 3 * i + a) += w * R[3 * i + b];
+        J(q, 3 * i + b) += w * R[3 * i + a];
+      }
+      r[q] = w * (dot - (q < 3 ? 1.0 : 0.0));
+    }
+  }
+  Eigen::Matrix<double, 6, 1> r;
+  Eigen::Matrix<double, 6, 9> J;
+};
+
+// E_rig's nine residuals of one bridge (eq. 8: R_j^T R_k - I) and their Jacobian in R_j, then
+// R_k.
+struct RigidityTerm {
+  RigidityTerm(const double* Rj, const double* Rk, double weight) {
+    const double w = std::sqrt(weight);
+    J.setZero();
+    for (int a = 0; a < 3; ++a) {
+      for (int b = 0; b < 3; ++b) {
+        const int q = 3 * a + b;
+        double dot = 0.0;
+        for (int i = 0; i < 3; ++i) {
+          dot += Rj[3 * i + a] * Rk[3 * i + b];
+          J(q, 3 * i + a) += w * Rk[3 * i + b];
+          J(q, 9 + 3 * i + b) += w * Rj[3 * i + a];
+        }
+        r[q] = w * (dot - (a == b ? 1.0 : 0.0));
+      }
+    }
+  }
+  Eigen::Matrix<double, 9, 1> r;
+  Eigen::Matrix<double, 9, 18> J;
+};
+
+// The problem's terms: the residuals, the gradient and J^T J at a given x. The terms linear
+// in x (the data terms and E_reg) give the same J^T J everywhere; it is assembled once.
+class Problem {
+ public:
+  Problem(const DeformationGraph& graph, std::span<const PointConstraint> constraints,
+          const EmbeddedDeformationOptions& options)
+      : graph_(graph),
+        constraints_(constraints),
+        options_(options),
+        n_(graph.num_nodes()),
+        linear_(n_, CoupledPairs(graph, constraints)) {
+    AssembleLinear();
+  }
+
+  const BlockMatrix& linear() const { return linear_; }
+
+  // 0.5 |r(x)|^2, and with @p gradient J^T r.
+  double Cost(const Eigen::VectorXd& x, Eigen::VectorXd* gradient) const {
+    double cost = 0.0;
+    if (gradient != nullptr) gradient->setZero(kB * n_);
+    const auto at = [&x](int j) { return x.data() + kB * j; };
+    // Data terms, eqs. (5) and (14).
+    for (const PointConstraint& c : constraints_) {
+      const double s = std::sqrt(options_.w_data * c.weight);
+      Eigen::Vector3d p = Eigen::Vector3d::Zero();
+      for (std::size_t k = 0; k < c.nodes.size(); ++k) {
+        const int j = c.nodes[k];
+        const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> Rj(at(j));
+        const Eigen::Map<const Eigen::Vector3d> tj(at(j) + 9);
+        const Eigen::Vector3d g = graph_.nodes.col(j);
+        p += c.weights[k] * (Rj * (c.rest - g) + g + tj);
+      }
+      // The residual's rows, each as a direction e (3-vector) and value r: row = e . (p - target).
+      Eigen::Vector3d weighted;  // sum over rows of r * e
+      if (!c.normal.isZero()) {
+        const double r = s * c.normal.dot(p - c.target);
+        cost += 0.5 * r * r;
+        weighted = r * c.normal;
+      } else {
+        const Eigen::Vector3d r = s * (p - c.target);
+        cost += 0.5 * r.squaredNorm();
+        weighted = r;
+      }
+      if (gradient == nullptr) continue;
+      for (std::size_t k = 0; k < c.nodes.size(); ++k) {
+        const int j = c.nodes[k];
+        const Eigen::Vector3d d = c.rest - graph_.nodes.col(j);
+        const Eigen::Vector3d f = s * c.weights[k] * weighted;
+        double* gj = gradient->data() + kB * j;
+        for (int a = 0; a < 3; ++a) {
+          for (int b = 0; b < 3; ++b) gj[3 * a + b] += f[a] * d[b];
+          gj[9 + a] += f[a];
+        }
+      }
+    }
+    // E_reg, eq. (7).
+    const double wreg = std::sqrt(options_.w_reg);
+    for (int i = 0; i < n_; ++i) {
+      for (int j : graph_.neighbours[static_cast<std::size_t>(i)]) {
+        const Eigen::Vector3d gi = graph_.nodes.col(i), gj = graph_.nodes.col(j);
+        const Eigen::Vector3d d = gi - gj;
+        const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> Rj(at(j));
+        const Eigen::Map<const Eigen::Vector3d> tj(at(j) + 9), ti(at(i) + 9);
+        const Eigen::Vector3d r = wreg * (Rj * d + gj + tj - gi - ti);
+        cost += 0.5 * r.squaredNorm();
+        if (gradient == nullptr) continue;
+        double* gjp = gradient->data() + kB * j;
+        double* gip = gradient->data() + kB * i;
+        for (int a = 0; a < 3; ++a) {
+          for (int b = 0; b < 3; ++b) gjp[3 * a + b] += wreg * r[a] * d[b];
+          gjp[9 + a] += wreg * r[a];
+          gip[9 + a] -= wreg * r[a];
+        }
+      }
+    }
+    // E_rot, eq. (6), and E_rig, eq. (8).
+    for (int j = 0; j < n_; ++j) {
+      const RotationTerm term(x.data() + kB * j, options_.w_rot);
+      cost += 0.5 * term.r.squaredNorm();
+      if (gradient != nullptr)
+        gradient->segment<9>(kB * j).noalias() += term.J.transpose() * term.r;
+    }
+    for (const auto& [j, k] : graph_.bridges) {
+      const RigidityTerm term(x.data() + kB * j, x.data() + kB * k, options_.w_rig);
+      cost += 0.5 * term.r.squaredNorm();
+      if (gradient == nullptr) continue;
+      gradient->segment<9>(kB * j).noalias() += term.J.leftCols<9>().transpose() * term.r;
+      gradient->segment<9>(kB * k).noalias() += term.J.rightCols<9>().transpose() * term.r;
+    }
+    return cost;
+  }
+
+  // J^T J at x: the linear terms' blocks and E_rot's and E_rig's, which depend on x.
+  void Curvature(const Eigen::VectorXd& x, BlockMatrix* jtj) const {
+    jtj->CopyValuesFrom(linear_);
+    for (int j = 0; j < n_; ++j) {
+      const RotationTerm term(x.data() + kB * j, options_.w_rot);
+      jtj->upper(j, j).topLeftCorner<9, 9>().noalias() += term.J.transpose() * term.J;
+    }
+    for (const auto& [j, k] : graph_.bridges) {
+      const RigidityTerm term(x.data() + kB * j, x.data() + kB * k, options_.w_rig);
+      const Eigen::Matrix<double, 18, 18> H = term.J.transpose() * term.J;
+      jtj->upper(j, j).topLeftCorner<9, 9>() += H.topLeftCorner<9, 9>();
+      jtj->upper(k, k).topLeftCorner<9, 9>() += H.bottomRightCorner<9, 9>();
+      Block cross = Block::Zero();
+      cross.topLeftCorner<9, 9>() = H.topRightCorner<9, 9>();
+      jtj->Add(j, k, cross);
+    }
+  }
+
+ private:
+  static std::vector<std::array<int, 2>> CoupledPairs(
+      const DeformationGraph& graph, std::span<const PointConstraint> constraints) {
+    std::vector<std::array<int, 2>> pairs;
+    for (const PointConstraint& c : constraints)
+      for (std::size_t a = 0; a < c.nodes.size(); ++a)
+        for (std::size_t b = a + 1; b < c.nodes.size(); ++b)
+          pairs.push_back({c.nodes[a], c.nodes[b]});
+    for (int i = 0; i < graph.num_nodes(); ++i)
+      for (int j : graph.neighbours[static_cast<std::size_t>(i)]) pairs.push_back({i, j});
+    for (const auto& [j, k] : graph.bridges) pairs.push_back({j, k});
+    return pairs;
+  }
+
+  // J^T J of the data terms and E_reg. A data row e . (sum_k w_k (R_k d_k + g_k + t_k)) has,
+  // on node k, the 12 entries w_k (e_a d_k[b] on R's row a, e_a on t_a).
+  void AssembleLinear() {
+    for (const PointConstraint& c : constraints_) {
+      const double s2 = options_.w_data * c.weight;
+      const std::size_t m = c.nodes.size();
+      const auto d = [&](std::size_t k) -> Eigen::Vector3d {
+        return c.rest - graph_.nodes.col(c.nodes[k]);
+      };
+      if (!c.normal.isZero()) {
+        // One row: a rank-one term u_a u_b^T per node pair.
+        Eigen::Matrix<double, kB, Eigen::Dynamic> u(kB, static_cast<Eigen::Index>(m));
+        for (std::size_t k = 0; k < m; ++k) {
+          const Eigen::Vector3d dk = d(k);
+          for (int a = 0; a < 3; ++a) {
+            for (int b = 0; b < 3; ++b)
+              u(3 * a + b, static_cast<Eigen::Index>(k)) = c.normal[a] * dk[b];
+            u(9 + a, static_cast<Eigen::Index>(k)) = c.normal[a];
+          }
+          u.col(static_cast<Eigen::Index>(k)) *= std::sqrt(s2) * c.weights[k];
+        }
+        for (std::size_t a = 0; a < m; ++a)
+          for (std::size_t b = a; b < m; ++b)
+            linear_.Add(c.nodes[a], c.nodes[b],
+                        u.col(static_cast<Eigen::Index>(a)) *
+                            u.col(static_cast<Eigen::Index>(b)).transpose());
+      } else {
+        // Three rows, one per axis a: on R's row a and t_a, the entries w_k d_k and w_k.
+        for (std::size_t ka = 0; ka < m; ++ka) {
+          for (std::size_t kb = ka; kb < m; ++kb) {
+            const double f = s2 * c.weights[ka] * c.weights[kb];
+            const Eigen::Vector3d da = d(ka), db = d(kb);
+            Block H = Block::Zero();
+            for (int a = 0; a < 3; ++a) {
+              H.block<3, 3>(3 * a, 3 * a) = f * da * db.transpose();
+              H.block<3, 1>(3 * a, 9 + a) = f * da;
+              H.block<1, 3>(9 + a, 3 * a) = f * db.transpose();
+              H(9 + a, 9 + a) = f;
+            }
+            linear_.Add(c.nodes[ka], c.nodes[kb], H);
+          }
+        }
+      }
+    }
+    // E_reg's rows: w (d . R_j row a + t_j[a] - t_i[a]) for edge (i, j), d = g_i - g_j.
+    const double w = options_.w_reg;
+    for (int i = 0; i < n_; ++i) {
+      for (int j : graph_.neighbours[static_cast<std::size_t>(i)]) {
+        const Eigen::Vector3d d = graph_.nodes.col(i) - graph_.nodes.col(j);
+        Block Hjj = Block::Zero(), Hji = Block::Zero(), Hii = Block::Zero();
+        for (int a = 0; a < 3; ++a) {
+          Hjj.block<3, 3>(3 * a, 3 * a) = w * d * d.transpose();
+          Hjj.block<3, 1>(3 * a, 9 + a) = w * d;
+          Hjj.block<1, 3>(9 + a, 3 * a) = w * d.transpose();
+          Hjj(9 + a, 9 + a) = w;
+          Hii(9 + a, 9 + a) = w;
+          Hji.block<3, 1>(3 * a, 9 + a) = -w * d;
+          Hji(9 + a, 9 + a) = -w;
+        }
+        linear_.Add(j, j, Hjj);
+        linear_.Add(i, i, Hii);
+        linear_.Add(j, i, Hji);
+      }
+    }
+  }
+
+  const DeformationGraph& graph_;
+  std::span<const PointConstraint> constraints_;
+  const EmbeddedDeformationOptions& options_;
+  int n_;
+  BlockMatrix linear_;
+};
+
+// Conjugate gradients on (H + diag(damping)) x = b, preconditioned by the inverse of each
+// node's damped diagonal block; stops when |residual| <= tolerance |b|.
+void SolveBlockCg(const BlockMatrix& H, const Eigen::VectorXd& damping, const Eigen::VectorXd& b,
+                  double tolerance, int max_iterations, Eigen::VectorXd* x) {
+  const int n = H.num_nodes();
+  std::vector<Block> inverse(static_cast<std::size_t>(n));
+  for (int j = 0; j < n; ++j) {
+    Block D = H.diagonal(j);
+    D.diagonal() += damping.segment<kB>(kB * j);
+    inverse[static_cast<std::size_t>(j)] = D.ldlt().solve(Block::Identity());
+  }
+  const auto precondition = [&](const Eigen::VectorXd& r, Eigen::VectorXd* z) {
+    for (int j = 0; j < n; ++j)
+      z->segment<kB>(kB * j).noalias() =
+          inverse[static_cast<std::size_t>(j)] * r.segment<kB>(kB * j);
+  };
+  x->setZero(b.size());
+  Eigen::VectorXd r = b, z(b.size()), p(b.size()), Ap(b.size());
+  const double limit = tolerance * tolerance * b.squaredNorm();
+  if (r.squaredNorm() <= limit) return;
+  precondition(r, &z);
+  p = z;
+  double rz = r.dot(z);
+  int k = 0;
+  while (k < max_iterations) {
+    ++k;
+    H.Multiply(damping, p, &Ap);
+    const double pAp = p.dot(Ap);
+    if (!(pAp > 0)) break;
+    const double alpha = rz / pAp;
+    *x += alpha * p;
+    r -= alpha * Ap;
+    if (r.squaredNorm() <= limit) break;
+    precondition(r, &z);
+    const double rz_next = r.dot(z);
+    p = z + (rz_next / rz) * p;
+    rz = rz_next;
+  }
+}
 
 }  // namespace
 
@@ -167,19 +396,25 @@ void DeformationState::set_rotation(int j, const Eigen::Matrix3d& A) {
 
 namespace {
 
-// Stops the solver, unusable, once the deadline passed.
-class DeadlineCallback final : public ceres::IterationCallback {
- public:
-  explicit DeadlineCallback(const MorphDeadline& deadline) : deadline_(deadline) {}
-  ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
-    return deadline_.Passed() ? ceres::SOLVER_ABORT : ceres::SOLVER_CONTINUE;
+Eigen::VectorXd Pack(const DeformationState& state) {
+  Eigen::VectorXd x(kB * static_cast<Eigen::Index>(state.R.size()));
+  for (std::size_t j = 0; j < state.R.size(); ++j) {
+    x.segment<9>(kB * static_cast<Eigen::Index>(j)) = state.R[j];
+    x.segment<3>(kB * static_cast<Eigen::Index>(j) + 9) = state.t[j];
   }
-
- private:
-  const MorphDeadline& deadline_;
-};
+  return x;
+}
 
 }  // namespace
+
+double EmbeddedDeformationEnergy(const DeformationGraph& graph,
+                                 std::span<const PointConstraint> constraints,
+                                 const EmbeddedDeformationOptions& options,
+                                 const DeformationState& state, Eigen::VectorXd* gradient) {
+  VB_DEMAND(static_cast<int>(state.R.size()) == graph.num_nodes() &&
+            static_cast<int>(state.t.size()) == graph.num_nodes());
+  return Problem(graph, constraints, options).Cost(Pack(state), gradient);
+}
 
 SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
                                       std::span<const PointConstraint> constraints,
@@ -188,67 +423,84 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
   VB_DEMAND(static_cast<int>(state->R.size()) == graph.num_nodes() &&
             static_cast<int>(state->t.size()) == graph.num_nodes());
   const auto start = std::chrono::steady_clock::now();
-  ceres::Problem::Options problem_options;
-  problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
-  ceres::Problem problem(problem_options);
-  const auto R = [state](int j) { return state->R[static_cast<std::size_t>(j)].data(); };
-  const auto t = [state](int j) { return state->t[static_cast<std::size_t>(j)].data(); };
-  for (int j = 0; j < graph.num_nodes(); ++j) {
-    problem.AddResidualBlock(
-        new ceres::AutoDiffCostFunction<RotationCost, 6, 9>(new RotationCost(options.w_rot)),
-        nullptr, R(j));
-  }
-  for (int i = 0; i < graph.num_nodes(); ++i) {
-    for (int j : graph.neighbours[static_cast<std::size_t>(i)]) {
-      // Eq. (7): for each node i and each j of its mu neighbours.
-      problem.AddResidualBlock(
-          new ceres::AutoDiffCostFunction<RegularisationCost, 3, 9, 3, 3>(
-              new RegularisationCost(graph.nodes.col(i), graph.nodes.col(j), options.w_reg)),
-          nullptr, R(j), t(j), t(i));
-    }
-  }
-  for (const auto& [j, k] : graph.bridges) {
-    problem.AddResidualBlock(
-        new ceres::AutoDiffCostFunction<RigidityCost, 9, 9, 9>(new RigidityCost(options.w_rig)),
-        nullptr, R(j), R(k));
-  }
-  for (const PointConstraint& c : constraints) {
-    std::vector<double*> blocks;
-    for (int node : c.nodes) {
-      blocks.push_back(R(node));
-      blocks.push_back(t(node));
-    }
-    problem.AddResidualBlock(new DataCost(c, graph, options.w_data), nullptr, blocks);
-  }
+  SolveSummary out;
+  const int n = graph.num_nodes();
+  const Eigen::Index size = static_cast<Eigen::Index>(kB) * n;
+  Problem problem(graph, constraints, options);
 
-  ceres::Solver::Options solver_options;
-  solver_options.minimizer_type = ceres::TRUST_REGION;
-  solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
-  solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  solver_options.max_num_iterations = options.max_iterations;
-  solver_options.num_threads = options.num_threads;
-  solver_options.function_tolerance = options.function_tolerance;
-  solver_options.logging_type = ceres::SILENT;
-  DeadlineCallback deadline(options.deadline);
-  solver_options.callbacks.push_back(&deadline);
-  if (options.linear_solver == EmbeddedDeformationOptions::LinearSolver::kConjugateGradients) {
-    solver_options.linear_solver_type = ceres::CGNR;
-    solver_options.preconditioner_type = ceres::JACOBI;
-  }
-  ceres::Solver::Summary summary;
-  if (options.deadline.Passed()) {
-    SolveSummary out;
-    out.message = "past the morph's deadline";
+  Eigen::VectorXd x = Pack(*state);
+  Eigen::VectorXd gradient(size), next_gradient(size);
+  BlockMatrix jtj = problem.linear();
+  double cost = problem.Cost(x, &gradient);
+  out.initial_cost = cost;
+  if (!std::isfinite(cost)) {
+    out.message = "the initial cost is not finite";
     return out;
   }
-  ceres::Solve(solver_options, &problem, &summary);
-
-  SolveSummary out;
-  out.usable = summary.IsSolutionUsable();
-  out.iterations = static_cast<int>(summary.iterations.size());
-  out.initial_cost = summary.initial_cost;
-  out.final_cost = summary.final_cost;
-  out.message = summary.message;
+  if (size == 0) {
+    out.usable = true;
+    out.message = "no nodes";
+    return out;
+  }
+  problem.Curvature(x, &jtj);
+  // Levenberg-Marquardt as Ceres runs it: the damping is 1 / radius times J^T J's diagonal
+  // (clamped to [1e-6, 1e32]), starting at 1e-4; a step counts when it gains at least 1e-3 of
+  // what the model predicted; the damping then shrinks by max(1/3, 1 - (2 rho - 1)^3), else
+  // grows by 2, 4, 8, ...
+  double mu = 1e-4;
+  double nu = 2.0;
+  Eigen::VectorXd damping(size), step(size), Hstep(size), next(size);
+  const Eigen::VectorXd undamped = Eigen::VectorXd::Zero(size);
+  out.message = "maximum iterations";
+  int iteration = 0;
+  for (; iteration < options.max_iterations; ++iteration) {
+    if (options.deadline.Passed()) {
+      out.message = "past the morph's deadline";
+      return out;
+    }
+    if (gradient.lpNorm<Eigen::Infinity>() <= 1e-10) {
+      out.message = "gradient tolerance";
+      break;
+    }
+    for (int j = 0; j < n; ++j) {
+      const Block& D = jtj.diagonal(j);
+      for (int a = 0; a < kB; ++a) damping[kB * j + a] = mu * std::clamp(D(a, a), 1e-6, 1e32);
+    }
+    SolveBlockCg(jtj, damping, -gradient, options.linear_tolerance, kMaxLinearIterations, &step);
+    jtj.Multiply(undamped, step, &Hstep);
+    const double predicted = -(gradient.dot(step) + 0.5 * step.dot(Hstep));
+    next = x + step;
+    const double next_cost = problem.Cost(next, &next_gradient);
+    const double rho = predicted > 0 ? (cost - next_cost) / predicted : -1.0;
+    if (std::isfinite(next_cost) && rho > 1e-3) {
+      const double decrease = cost - next_cost;
+      x.swap(next);
+      gradient.swap(next_gradient);
+      cost = next_cost;
+      problem.Curvature(x, &jtj);
+      mu = std::max(1e-16, mu * std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3)));
+      nu = 2.0;
+      if (decrease <= options.function_tolerance * (cost + decrease)) {
+        out.message = "function tolerance";
+        ++iteration;
+        break;
+      }
+    } else {
+      mu *= nu;
+      nu *= 2.0;
+      if (mu > 1e32) {
+        out.message = "no step lowers the cost";
+        break;
+      }
+    }
+  }
+  for (int j = 0; j < n; ++j) {
+    state->R[static_cast<std::size_t>(j)] = x.segment<9>(kB * j);
+    state->t[static_cast<std::size_t>(j)] = x.segment<3>(kB * j + 9);
+  }
+  out.usable = std::isfinite(cost);
+  out.iterations = iteration;
+  out.final_cost = cost;
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
 }

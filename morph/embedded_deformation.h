@@ -63,18 +63,11 @@ struct EmbeddedDeformationOptions {
   double w_reg = 10.0;
   double w_rig = 10.0;
   int max_iterations = 50;
-  /// How each Levenberg-Marquardt step is solved. Sparse normal Cholesky suits the coarse
-  /// stage's few constraints; with thousands of dense point-to-plane terms, each coupling
-  /// four nodes, the normal matrix fills in and conjugate gradients (CGNR, Jacobi
-  /// preconditioner) reach the same cost several times faster.
-  enum class LinearSolver { kSparseNormalCholesky, kConjugateGradients };
-  LinearSolver linear_solver = LinearSolver::kSparseNormalCholesky;
-  /// Ceres' threads for one solve. One: a second gained nothing on these problems (their
-  /// linear solves run on one thread in Ceres 2.1) and made the result depend on how the
-  /// threads shared the sums; the morph's parallel work is elsewhere (Morpher).
-  int num_threads = 1;
-  /// The solve stops when a step changes the cost by less than this fraction of it (Ceres'
-  /// function_tolerance).
+  /// Each Levenberg-Marquardt step is solved by conjugate gradients, preconditioned by each
+  /// node's 12 x 12 block, until the residual is at most this fraction of the right-hand
+  /// side: an inexact step, as Ceres' CGNR takes one (its eta, 0.1).
+  double linear_tolerance = 0.1;
+  /// The solve stops when a step lowers the cost by less than this fraction of it.
   double function_tolerance = 1e-7;
   /// The solve stops, unusable, once this passes.
   MorphDeadline deadline;
@@ -90,12 +83,24 @@ struct SolveSummary {
 };
 
 /// Minimises w_data E_data + w_rot E_rot (6) + w_reg E_reg (7) + w_rig E_rig (8) over the
-/// node transforms with Ceres' Levenberg-Marquardt and a sparse normal Cholesky solver,
-/// starting from @p state.
+/// node transforms by Levenberg-Marquardt, starting from @p state. J^T J is kept as one
+/// 12 x 12 block per pair of nodes some term couples; the terms linear in the transforms
+/// (E_data, E_reg) give the same blocks at every step, so they are assembled once per solve
+/// and each step adds only E_rot's and E_rig's. Runs on the calling thread; the same input
+/// gives the same result to the bit.
 SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
                                       std::span<const PointConstraint> constraints,
                                       const EmbeddedDeformationOptions& options,
                                       DeformationState* state);
+
+/// The energy SolveEmbeddedDeformation minimises, as half the sum of its squared residuals
+/// (each term's residuals scaled by the square root of its weight), at @p state; with
+/// @p gradient, its gradient: 12 entries per node, R_j row-major, then t_j.
+double EmbeddedDeformationEnergy(const DeformationGraph& graph,
+                                 std::span<const PointConstraint> constraints,
+                                 const EmbeddedDeformationOptions& options,
+                                 const DeformationState& state,
+                                 Eigen::VectorXd* gradient = nullptr);
 
 /// Eq. (9): moves each column of @p rest by the nodes acting on it.
 /// @param[in] rest 3 by N points; @param[in] weights K by N node influences.

@@ -144,7 +144,7 @@ TEST_F(MemoryBudgetTest, AFullArenaFallsBackToTheHeapAndCountsIt) {
 }
 
 // The proof for the part of the daemon that allocates: the job thread's whole job
-// (morph with Ceres and Eigen, cut-lines message, saw job, CAN frames, LCM publish), for
+// (morph, cut-lines message, saw job, CAN frames, LCM publish), for
 // several carcasses in a row. After the first, no allocation reaches the heap, and the
 // arena holds no more after each job than after the first: nothing accumulates.
 TEST_F(MemoryBudgetTest, SteadyStateJobsAllocateOnlyFromTheArenaAndGiveItAllBack) {
@@ -210,8 +210,8 @@ TEST_F(MemoryBudgetTest, SteadyStateJobsAllocateOnlyFromTheArenaAndGiveItAllBack
     EXPECT_GT(s.arena_allocations - previous.arena_allocations, 10000)
         << "job " << j << " hardly allocated: is it still running on this thread?";
     EXPECT_LE(s.arena_live_bytes, first.arena_live_bytes) << "job " << j;
-    // Nothing outside the arena either: the morph's worker is inside the budget, and Ceres
-    // solves on the calling thread (docs/decisions.md).
+    // Nothing outside the arena either: the morph's worker is inside the budget, and each
+    // solve runs on the thread that asks for it (docs/decisions.md).
     EXPECT_EQ(s.other_allocations - previous.other_allocations, 0) << "job " << j;
     EXPECT_LT(s.arena_peak_bytes, kArenaBytes / 2) << "job " << j;  // the daemon's is 512 MiB
   }
