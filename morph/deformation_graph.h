@@ -28,8 +28,13 @@ struct DeformationGraph {
   int num_nodes() const { return static_cast<int>(nodes.cols()); }
 };
 
+/// The most nodes that may act on one point: a compiled template with more is refused, since
+/// the solver's work and memory grow with the square of it.
+inline constexpr int kMaxNodesPerPoint = 16;
+
 /// Fixed-width node influences: column i lists the nodes acting on point i and their
 /// weights (summing to 1); unused slots have node -1 and weight 0.
+/// The nodes of a column are distinct; at most kMaxNodesPerPoint rows.
 struct NodeWeights {
   Eigen::MatrixXi nodes;    ///< K by #points
   Eigen::MatrixXd weights;  ///< K by #points

@@ -131,8 +131,26 @@ class Problem {
         constraints_(constraints),
         options_(options),
         n_(graph.num_nodes()),
-        linear_(n_, CoupledPairs(graph, constraints)) {
+        linear_((Demand(graph, constraints), n_), CoupledPairs(graph, constraints)) {
     AssembleLinear();
+  }
+
+  // The preconditions SolveEmbeddedDeformation states: every node index in range, and no
+  // node twice in one term (a term's blocks would then be summed as if its nodes differed).
+  static void Demand(const DeformationGraph& graph, std::span<const PointConstraint> constraints) {
+    const int n = graph.num_nodes();
+    const auto valid = [n](int j) { return j >= 0 && j < n; };
+    for (const PointConstraint& c : constraints) {
+      VB_DEMAND(c.nodes.size() == c.weights.size());
+      for (std::size_t a = 0; a < c.nodes.size(); ++a) {
+        VB_DEMAND(valid(c.nodes[a]));
+        for (std::size_t b = 0; b < a; ++b) VB_DEMAND(c.nodes[a] != c.nodes[b]);
+      }
+    }
+    VB_DEMAND(graph.neighbours.size() == static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i)
+      for (int j : graph.neighbours[static_cast<std::size_t>(i)]) VB_DEMAND(valid(j) && j != i);
+    for (const auto& [j, k] : graph.bridges) VB_DEMAND(valid(j) && valid(k) && j != k);
   }
 
   const BlockMatrix& linear() const { return linear_; }
@@ -319,9 +337,11 @@ class Problem {
 };
 
 // Conjugate gradients on (H + diag(damping)) x = b, preconditioned by the inverse of each
-// node's damped diagonal block; stops when |residual| <= tolerance |b|.
+// node's damped diagonal block; stops when |residual| <= tolerance |b|, after
+// @p max_iterations, or once @p deadline passed.
 void SolveBlockCg(const BlockMatrix& H, const Eigen::VectorXd& damping, const Eigen::VectorXd& b,
-                  double tolerance, int max_iterations, Eigen::VectorXd* x) {
+                  double tolerance, int max_iterations, const MorphDeadline& deadline,
+                  Eigen::VectorXd* x) {
   const int n = H.num_nodes();
   std::vector<Block> inverse(static_cast<std::size_t>(n));
   for (int j = 0; j < n; ++j) {
@@ -342,7 +362,7 @@ void SolveBlockCg(const BlockMatrix& H, const Eigen::VectorXd& damping, const Ei
   p = z;
   double rz = r.dot(z);
   int k = 0;
-  while (k < max_iterations) {
+  while (k < max_iterations && !deadline.Passed()) {
     ++k;
     H.Multiply(damping, p, &Ap);
     const double pAp = p.dot(Ap);
@@ -424,6 +444,12 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
             static_cast<int>(state->t.size()) == graph.num_nodes());
   const auto start = std::chrono::steady_clock::now();
   SolveSummary out;
+  const auto finish = [&](std::string message) {
+    out.message = std::move(message);
+    out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return out;
+  };
+  if (options.deadline.Passed()) return finish("past the morph's deadline");
   const int n = graph.num_nodes();
   const Eigen::Index size = static_cast<Eigen::Index>(kB) * n;
   Problem problem(graph, constraints, options);
@@ -433,14 +459,10 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
   BlockMatrix jtj = problem.linear();
   double cost = problem.Cost(x, &gradient);
   out.initial_cost = cost;
-  if (!std::isfinite(cost)) {
-    out.message = "the initial cost is not finite";
-    return out;
-  }
+  if (!std::isfinite(cost)) return finish("the initial cost is not finite");
   if (size == 0) {
     out.usable = true;
-    out.message = "no nodes";
-    return out;
+    return finish("no nodes");
   }
   problem.Curvature(x, &jtj);
   // Levenberg-Marquardt as Ceres runs it: the damping is 1 / radius times J^T J's diagonal
@@ -451,22 +473,20 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
   double nu = 2.0;
   Eigen::VectorXd damping(size), step(size), Hstep(size), next(size);
   const Eigen::VectorXd undamped = Eigen::VectorXd::Zero(size);
-  out.message = "maximum iterations";
+  std::string stop = "maximum iterations";
   int iteration = 0;
   for (; iteration < options.max_iterations; ++iteration) {
-    if (options.deadline.Passed()) {
-      out.message = "past the morph's deadline";
-      return out;
-    }
+    if (options.deadline.Passed()) break;
     if (gradient.lpNorm<Eigen::Infinity>() <= 1e-10) {
-      out.message = "gradient tolerance";
+      stop = "gradient tolerance";
       break;
     }
     for (int j = 0; j < n; ++j) {
       const Block& D = jtj.diagonal(j);
       for (int a = 0; a < kB; ++a) damping[kB * j + a] = mu * std::clamp(D(a, a), 1e-6, 1e32);
     }
-    SolveBlockCg(jtj, damping, -gradient, options.linear_tolerance, kMaxLinearIterations, &step);
+    SolveBlockCg(jtj, damping, -gradient, options.linear_tolerance, kMaxLinearIterations,
+                 options.deadline, &step);
     jtj.Multiply(undamped, step, &Hstep);
     const double predicted = -(gradient.dot(step) + 0.5 * step.dot(Hstep));
     next = x + step;
@@ -481,7 +501,7 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
       mu = std::max(1e-16, mu * std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3)));
       nu = 2.0;
       if (decrease <= options.function_tolerance * (cost + decrease)) {
-        out.message = "function tolerance";
+        stop = "function tolerance";
         ++iteration;
         break;
       }
@@ -489,20 +509,22 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
       mu *= nu;
       nu *= 2.0;
       if (mu > 1e32) {
-        out.message = "no step lowers the cost";
+        stop = "no step lowers the cost";
+        ++iteration;
         break;
       }
     }
   }
+  out.iterations = iteration;
+  // Past the deadline the solve is abandoned whatever it reached, and the state left as given.
+  if (options.deadline.Passed()) return finish("past the morph's deadline");
   for (int j = 0; j < n; ++j) {
     state->R[static_cast<std::size_t>(j)] = x.segment<9>(kB * j);
     state->t[static_cast<std::size_t>(j)] = x.segment<3>(kB * j + 9);
   }
-  out.usable = std::isfinite(cost);
-  out.iterations = iteration;
+  out.usable = true;  // every accepted cost is finite
   out.final_cost = cost;
-  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return out;
+  return finish(stop);
 }
 
 Eigen::Matrix3Xd DeformPoints(const DeformationGraph& graph, const NodeWeights& weights,

@@ -65,9 +65,10 @@ struct EmbeddedDeformationOptions {
   int max_iterations = 50;
   /// Each Levenberg-Marquardt step is solved by conjugate gradients, preconditioned by each
   /// node's 12 x 12 block, until the residual is at most this fraction of the right-hand
-  /// side: an inexact step, as Ceres' CGNR takes one (its eta, 0.1).
+  /// side (or 500 iterations): an inexact step, which the step acceptance tolerates. Lower
+  /// it where a solve must end close to the exact minimum (a test, a fit to ground truth).
   double linear_tolerance = 0.1;
-  /// The solve stops when a step lowers the cost by less than this fraction of it.
+  /// The solve stops when a step it takes lowers the cost by less than this fraction of it.
   double function_tolerance = 1e-7;
   /// The solve stops, unusable, once this passes.
   MorphDeadline deadline;
@@ -75,7 +76,7 @@ struct EmbeddedDeformationOptions {
 
 struct SolveSummary {
   bool usable = false;  ///< the solver returned a finite solution
-  int iterations = 0;
+  int iterations = 0;   ///< Levenberg-Marquardt steps tried, taken or not
   double initial_cost = 0.0;
   double final_cost = 0.0;
   double seconds = 0.0;
@@ -87,7 +88,11 @@ struct SolveSummary {
 /// 12 x 12 block per pair of nodes some term couples; the terms linear in the transforms
 /// (E_data, E_reg) give the same blocks at every step, so they are assembled once per solve
 /// and each step adds only E_rot's and E_rig's. Runs on the calling thread; the same input
-/// gives the same result to the bit.
+/// gives the same result to the bit. When the result is not usable (a non-finite start, the
+/// deadline passed) @p state is left as given.
+/// @pre every node index in @p constraints and @p graph lies in [0, num_nodes), no term names
+/// a node twice (a constraint's nodes are distinct; no node is its own neighbour; no bridge
+/// joins a node to itself), and each constraint has one weight per node.
 SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
                                       std::span<const PointConstraint> constraints,
                                       const EmbeddedDeformationOptions& options,

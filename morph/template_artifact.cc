@@ -42,6 +42,18 @@ void CheckJagged(const io::ArchiveReader& r, const std::string& name,
   for (const std::vector<int>& list : lists) CheckIndices(r, name, list, limit);
 }
 
+// Fails unless the indices in @p values (-1 for an unused slot) are distinct and none is
+// @p self: a node that acts twice on one point, or is its own neighbour, is a corrupt graph.
+void CheckDistinct(const io::ArchiveReader& r, const std::string& name, std::vector<int> values,
+                   int self = -1) {
+  std::erase(values, -1);
+  for (const int v : values)
+    if (v == self) r.Fail(name, "node " + std::to_string(v) + " is listed as its own neighbour");
+  std::sort(values.begin(), values.end());
+  const auto twice = std::adjacent_find(values.begin(), values.end());
+  if (twice != values.end()) r.Fail(name, "lists node " + std::to_string(*twice) + " twice");
+}
+
 void PutWeights(io::ArchiveWriter* w, const std::string& name, const NodeWeights& weights) {
   w->Put(name + ".nodes", weights.nodes);
   w->Put(name + ".weights", weights.weights);
@@ -51,11 +63,18 @@ NodeWeights GetWeights(const io::ArchiveReader& r, const std::string& name, Eige
                        int num_nodes) {
   NodeWeights weights;
   weights.nodes = r.Ints(name + ".nodes");
+  if (weights.nodes.rows() > kMaxNodesPerPoint)
+    r.Fail(name + ".nodes", std::to_string(weights.nodes.rows()) + " nodes a point, more than " +
+                                std::to_string(kMaxNodesPerPoint));
   weights.weights = r.Doubles(name + ".weights", static_cast<int>(weights.nodes.rows()));
   if (weights.nodes.cols() != points || weights.weights.cols() != points)
     r.Fail(name, "covers " + std::to_string(weights.nodes.cols()) + " points, expected " +
                      std::to_string(points));
   CheckIndices(r, name + ".nodes", weights.nodes.reshaped(), num_nodes, true);
+  for (Eigen::Index i = 0; i < weights.nodes.cols(); ++i) {
+    const auto column = weights.nodes.col(i);
+    CheckDistinct(r, name + ".nodes", std::vector<int>(column.begin(), column.end()));
+  }
   if (!weights.weights.allFinite()) r.Fail(name + ".weights", "has non-finite values");
   return weights;
 }
@@ -191,9 +210,15 @@ TemplateArtifact LoadTemplateArtifact(const std::filesystem::path& path) {
   for (int j = 0; j < nn; ++j) m.graph.nodes.col(j) = m.V.col(m.graph.node_vertex[static_cast<std::size_t>(j)]);
   m.graph.neighbours = r.Jagged("graph.neighbours");
   CheckJagged(r, "graph.neighbours", m.graph.neighbours, static_cast<std::size_t>(nn), nn);
+  for (int j = 0; j < nn; ++j)
+    CheckDistinct(r, "graph.neighbours", m.graph.neighbours[static_cast<std::size_t>(j)], j);
   const Eigen::MatrixXi edges = r.Ints("graph.edges", 2), bridges = r.Ints("graph.bridges", 2);
   CheckIndices(r, "graph.edges", edges.reshaped(), nn);
   CheckIndices(r, "graph.bridges", bridges.reshaped(), nn);
+  for (Eigen::Index i = 0; i < bridges.cols(); ++i)
+    if (bridges(0, i) == bridges(1, i))
+      r.Fail("graph.bridges", "bridge " + std::to_string(i) + " joins node " +
+                                  std::to_string(bridges(0, i)) + " to itself");
   m.graph.edges = ToPairs(edges);
   m.graph.bridges = ToPairs(bridges);
   m.vertex_weights = GetWeights(r, "vertex_weights", nv, nn);

@@ -616,8 +616,7 @@ TEST_F(DenseAlignmentTest, TheTemplateIsNotPulledIntoWhatTheCloudDoesNotShow) {
               1000 * hole_error[1], 1000 * error[0] / 3, 1000 * error[1] / 3);
   // Measured: 8.83 -> 8.64 mm over the holes (x0.978) and 5.050 -> 5.053 mm over all vertices;
   // 20 to 45 pairs a morph are dropped. (With normals from each point's 24 nearest, 10.6 -> 9.1
-  // mm: the normals held within the curvature leave the rim's pairs less to pull. With Ceres'
-  // inexact steps the unlimited morph read 9.04 mm.)
+  // mm: the normals held within the curvature leave the rim's pairs less to pull.)
   EXPECT_LT(hole_error[1], 0.985 * hole_error[0]);
   EXPECT_LT(hole_error[1], 0.0095);
   EXPECT_LT(error[1], 1.005 * error[0]);

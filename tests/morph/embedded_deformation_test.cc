@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <random>
 
@@ -41,8 +43,8 @@ TEST_F(EmbeddedDeformationTest, WithoutDataNothingMoves) {
   EXPECT_LT((DeformPoints(graph_, weights_, mesh_.V, state) - mesh_.V).cwiseAbs().maxCoeff(), 1e-9);
 }
 
-// A chain of five nodes (every edge a bridge, so E_rig acts) with point and plane terms on
-// random nodes, at a random state away from the identity.
+// A chain of five nodes (every edge a bridge, so E_rig acts; named both ways round) with
+// point and plane terms on random nodes, at a random state away from the identity.
 struct ChainProblem {
   ChainProblem() : state(DeformationState::Identity(5)) {
     std::mt19937 rng(7);
@@ -55,7 +57,8 @@ struct ChainProblem {
       if (j < 4) graph.neighbours[static_cast<std::size_t>(j)].push_back(j + 1);
       if (j < 4) graph.edges.push_back({j, j + 1});
     }
-    graph.bridges = graph.edges;
+    for (const auto& [j, k] : graph.edges)
+      graph.bridges.push_back(j % 2 == 0 ? std::array<int, 2>{j, k} : std::array<int, 2>{k, j});
     for (int c = 0; c < 12; ++c) {
       PointConstraint p;
       const int a = c % 5, b = (c + 2) % 5;
@@ -119,8 +122,32 @@ TEST(EmbeddedDeformationEnergyTest, GradientMatchesFiniteDifferences) {
 
 // Measured: 24 (a first-order step, or J^T J without E_rig's blocks, needs far more).
 constexpr int kChainIterations = 36;
+constexpr int kQuadraticIterations = 7;  // measured: 5
 
-TEST(EmbeddedDeformationEnergyTest, SolveReachesAStationaryPoint) {
+TEST(EmbeddedDeformationEnergyTest, IsHalfTheWeightedSumOfTheSquaredTerms) {
+  // Node 0 stretched twice along x, every other node at the identity; one point term on node
+  // 0 alone, 0.1 off along x, and one plane term whose plane holds the deformed point.
+  ChainProblem p;
+  p.state = DeformationState::Identity(5);
+  p.state.set_rotation(0, Eigen::Vector3d(2, 1, 1).asDiagonal());
+  const Eigen::Vector3d g0 = p.graph.nodes.col(0);
+  PointConstraint point;
+  point.nodes = {0};
+  point.weights = {1.0};
+  point.rest = g0 + Eigen::Vector3d(0.1, 0, 0);  // carried to g0 + (0.2, 0, 0)
+  point.target = point.rest;
+  point.weight = 2.0;
+  PointConstraint plane = point;
+  plane.normal = Eigen::Vector3d::UnitY();
+  const std::vector<PointConstraint> constraints = {point, plane};
+  // E_rot: R_0^T R_0 - I = diag(3, 0, 0). E_rig, bridge (0, 1): R_0^T R_1 - I = diag(1, 0, 0).
+  // E_reg, node 1 predicted by node 0: (R_0 - I)(g_1 - g_0) = (0.3, 0, 0). Data: w_data
+  // times the term's weight times 0.1^2; the plane term is zero.
+  const double expected = 0.5 * (2.0 * 9.0 + 7.0 * 1.0 + 5.0 * 0.3 * 0.3 + 3.0 * 2.0 * 0.1 * 0.1);
+  EXPECT_NEAR(EmbeddedDeformationEnergy(p.graph, constraints, p.options, p.state), expected, 1e-12);
+}
+
+TEST(EmbeddedDeformationSolveTest, ReachesAStationaryPoint) {
   // Every term at once, the nonlinear ones (E_rot, E_rig) included: with exact steps
   // Levenberg-Marquardt on the Gauss-Newton matrix ends where the gradient vanishes.
   ChainProblem p;
@@ -139,6 +166,41 @@ TEST(EmbeddedDeformationEnergyTest, SolveReachesAStationaryPoint) {
   EXPECT_LT(after.lpNorm<Eigen::Infinity>(), 1e-9 * before.lpNorm<Eigen::Infinity>())
       << summary.message << " after " << summary.iterations << " iterations";
   EXPECT_LE(summary.iterations, kChainIterations);
+}
+
+TEST(EmbeddedDeformationSolveTest, SolvesAQuadraticInAFewSteps) {
+  // Without E_rot and E_rig the energy is quadratic: with exact steps only the damping, a
+  // thousandth of J^T J's diagonal and falling, keeps the first steps from the minimum. A
+  // wrong block of the linear terms' J^T J would make every step miss it.
+  ChainProblem p;
+  p.options.w_rot = 0.0;
+  p.options.w_rig = 0.0;
+  p.options.linear_tolerance = 1e-12;
+  p.options.function_tolerance = 1e-15;
+  p.options.max_iterations = 100;
+  Eigen::VectorXd before, after;
+  EmbeddedDeformationEnergy(p.graph, p.constraints, p.options, p.state, &before);
+  const SolveSummary summary =
+      SolveEmbeddedDeformation(p.graph, p.constraints, p.options, &p.state);
+  ASSERT_TRUE(summary.usable) << summary.message;
+  EmbeddedDeformationEnergy(p.graph, p.constraints, p.options, p.state, &after);
+  EXPECT_LT(after.lpNorm<Eigen::Infinity>(), 1e-9 * before.lpNorm<Eigen::Infinity>());
+  EXPECT_LE(summary.iterations, kQuadraticIterations);
+}
+
+TEST(EmbeddedDeformationSolveTest, PastTheDeadlineLeavesTheStateAsGiven) {
+  ChainProblem p;
+  const std::atomic<bool> cancel{true};
+  p.options.deadline.cancel = &cancel;
+  const DeformationState given = p.state;
+  const SolveSummary summary =
+      SolveEmbeddedDeformation(p.graph, p.constraints, p.options, &p.state);
+  EXPECT_FALSE(summary.usable);
+  EXPECT_EQ(summary.message, "past the morph's deadline");
+  for (std::size_t j = 0; j < given.R.size(); ++j) {
+    EXPECT_EQ(p.state.R[j], given.R[j]);
+    EXPECT_EQ(p.state.t[j], given.t[j]);
+  }
 }
 
 TEST(DeformNormalsTest, TurnsNormalsByTheInverseTransposeOfEachNode) {

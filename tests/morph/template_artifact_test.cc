@@ -123,6 +123,38 @@ TEST_F(TemplateArtifactTest, RefusesAWellFormedFileWithNonFiniteFeaturesOrSkelet
   EXPECT_EQ(error([](TemplateArtifact*) {}), "(accepted)");
 }
 
+TEST_F(TemplateArtifactTest, RefusesAGraphWithRepeatedOrSelfJoinedNodes) {
+  // The solver sums one block per pair of nodes: a node acting twice on a point, its own
+  // neighbour, a bridge from a node to itself, or a point under too many nodes is refused on
+  // load, with the section named.
+  test::TempDir dir;
+  auto error = [&](const std::function<void(TemplateArtifact*)>& spoil) {
+    TemplateArtifact artifact = Lamb();
+    spoil(&artifact);
+    return ErrorOnReload(artifact, dir / "spoilt.vbt");
+  };
+  EXPECT_THAT(error([](TemplateArtifact* a) {
+                NodeWeights& w = a->model.vertex_weights;
+                w.nodes(1, 5) = w.nodes(0, 5);
+              }),
+              HasSubstr("section 'vertex_weights.nodes': lists node"));
+  EXPECT_THAT(error([](TemplateArtifact* a) { a->model.graph.neighbours[3].push_back(3); }),
+              HasSubstr("section 'graph.neighbours': node 3 is listed as its own neighbour"));
+  EXPECT_THAT(error([](TemplateArtifact* a) {
+                a->model.graph.bridges.push_back({2, 2});
+              }),
+              HasSubstr("joins node 2 to itself"));
+  EXPECT_THAT(error([](TemplateArtifact* a) {
+                NodeWeights& w = a->model.terminal_weights;
+                const Eigen::Index k = w.nodes.rows();
+                w.nodes.conservativeResize(kMaxNodesPerPoint + 1, Eigen::NoChange);
+                w.nodes.bottomRows(kMaxNodesPerPoint + 1 - k).setConstant(-1);
+                w.weights.conservativeResize(kMaxNodesPerPoint + 1, Eigen::NoChange);
+                w.weights.bottomRows(kMaxNodesPerPoint + 1 - k).setZero();
+              }),
+              HasSubstr("section 'terminal_weights.nodes': 17 nodes a point, more than 16"));
+}
+
 TEST_F(TemplateArtifactTest, KeepsItsMorphProfileAndRefusesOneOutOfBounds) {
   test::TempDir dir;
   TemplateArtifact artifact = Lamb();
