@@ -38,6 +38,7 @@ struct FullRow {
   double max_rel = 0, mean_rel = 0, max_mm = 0, mean_mm = 0;
   std::vector<double> volume_rel_error, area_rel_error;                // per part
   std::vector<double> cut_angle_deg, cut_distance_mm, cut_confidence;  // per cut
+  std::vector<double> cut_slide_error_mm;  // per cut: the placement's own standard deviation
   // The same transfer through the true positions of the template's vertices instead of the
   // morph: what a perfect morph would give (the cut lines are not quite planar, and the
   // transfer moves them onto the noisy target).
@@ -185,6 +186,7 @@ FullRow Evaluate(const morph::TemplateModel& model, const io::Annotations& annot
     row.cut_angle_deg.push_back(std::acos(cosine) * 180.0 / std::numbers::pi);
     row.cut_distance_mm.push_back(mean_distance_mm(cuts[c].plane, c));
     row.cut_confidence.push_back(cuts[c].confidence);
+    row.cut_slide_error_mm.push_back(1000.0 * cuts[c].slide_error);
   }
   if (example != nullptr) *example = Example{dense.mesh, cuts};
   return row;
@@ -436,7 +438,7 @@ int RunFullBench(const BenchOptions& options) {
     csv << ",volume_rel_err_" << part << ",area_rel_err_" << part;
   for (const io::CutAnnotation& cut : carcass.annotations.cuts)
     csv << ",angle_deg_" << cut.name << ",distance_mm_" << cut.name << ",true_morph_distance_mm_"
-        << cut.name << ",confidence_" << cut.name;
+        << cut.name << ",confidence_" << cut.name << ",slide_error_mm_" << cut.name;
   csv << ",kept_fraction,plane_distance_rel,final_cost,ambiguity,unexplained,reach,stretch,"
          "coarse_s,normals_s,dense_s,cuts_s,total_s\n";
   for (const FullRow& r : rows) {
@@ -452,9 +454,9 @@ int RunFullBench(const BenchOptions& options) {
     for (std::size_t c = 0; c < carcass.annotations.cuts.size(); ++c) {
       if (r.ok)
         csv << ',' << r.cut_angle_deg[c] << ',' << r.cut_distance_mm[c] << ',' << r.cut_floor_mm[c]
-            << ',' << r.cut_confidence[c];
+            << ',' << r.cut_confidence[c] << ',' << r.cut_slide_error_mm[c];
       else
-        csv << ",,,,";
+        csv << ",,,,,";
     }
     csv << ',' << r.kept_fraction << ',' << r.plane_distance_rel << ',' << r.final_cost << ','
         << r.ambiguity << ',' << r.unexplained << ',' << r.reach << ',' << r.stretch << ','

@@ -190,6 +190,9 @@ int RunLcmListen(const LcmListenOptions& options) {
   lcm.subscribe(options.channels.cut_lines, &Listener::OnCutLines, &listener);
   lcm.subscribe(options.channels.status, &Listener::OnStatus, &listener);
   lcm.subscribe(options.channels.diagnostics, &Listener::OnDiagnostic, &listener);
+  // A script that starts a publisher after this line is sure nothing it sends is missed.
+  std::printf("lcm-listen: listening on %s\n", options.url.c_str());
+  std::fflush(stdout);
   const auto deadline =
       std::chrono::steady_clock::now() + std::chrono::duration<double>(options.timeout_s);
   auto done = [&] {

@@ -16,13 +16,23 @@ url="udpm://239.255.76.67:7667?ttl=0"
 work=$(mktemp -d)
 trap 'kill $(jobs -p) 2>/dev/null || true; rm -rf "$work"' EXIT
 count=20
+# listen <output> <args...>: a listener in the background, returned once it has subscribed.
+listen() {
+  local out=$1
+  shift
+  "$vbutcher" lcm-listen --url "$url" "$@" >"$out" &
+  listener=$!
+  for _ in $(seq 300); do grep -q "^lcm-listen: listening on" "$out" && return 0; sleep 0.1; done
+  echo "FAIL: lcm-listen did not subscribe within 30 s:"
+  cat "$out"
+  exit 1
+}
 
 # 1. Live: a listener and the logger, then the publisher.
-"$vbutcher" lcm-listen --url "$url" --count $count --timeout 20 >"$work/live.txt" &
-listener=$!
 lcm-logger --lcm-url="$url" --quiet "$work/run.lcmlog" &
 logger=$!
-sleep 0.5
+listen "$work/live.txt" --count $count --timeout 20
+sleep 0.5  # lcm-logger says nothing when it has subscribed; it started before the listener
 "$vbutcher" lcm-publish --url "$url" --cuts "$cuts" --carcass-id netns-test --count $count --period-ms 10
 wait $listener || { echo "FAIL: live listener:"; cat "$work/live.txt"; exit 1; }
 sleep 0.3
@@ -32,9 +42,7 @@ grep -q "received $count invalid 0 out_of_order 0" "$work/live.txt" || { cat "$w
 [ -s "$work/run.lcmlog" ] || { echo "FAIL: lcm-logger wrote nothing"; exit 1; }
 
 # 2. Replay: lcm-logplayer plays the log back to a new listener.
-"$vbutcher" lcm-listen --url "$url" --count $count --timeout 20 >"$work/replay.txt" &
-listener=$!
-sleep 0.5
+listen "$work/replay.txt" --count $count --timeout 20
 lcm-logplayer --lcm-url="$url" "$work/run.lcmlog"
 wait $listener || { echo "FAIL: replay listener:"; cat "$work/replay.txt"; exit 1; }
 grep -q "received $count invalid 0 out_of_order 0" "$work/replay.txt" || { cat "$work/replay.txt"; exit 1; }
@@ -43,9 +51,7 @@ grep -q "received $count invalid 0 out_of_order 0" "$work/replay.txt" || { cat "
 # channel, then the payload lcm-gen's Python type encodes with num_cuts = -1), between
 # good ones (from two publishers, so one sequence number starts again).
 types=$(dirname "$(dirname "$(realpath "$vbutcher")")")/io/lcmtypes/python
-"$vbutcher" lcm-listen --url "$url" --count 3 --timeout 20 >"$work/malformed.txt" &
-listener=$!
-sleep 0.5
+listen "$work/malformed.txt" --count 3 --timeout 20
 "$vbutcher" lcm-publish --url "$url" --cuts "$cuts" --carcass-id before --count 1 >/dev/null
 /usr/bin/python3 - "$types" <<'PY'
 import socket, struct, sys
