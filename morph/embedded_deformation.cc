@@ -15,6 +15,15 @@ namespace {
 constexpr int kB = 12;  // unknowns per node: R row-major (9), then t (3)
 constexpr int kMaxLinearIterations = 500;
 using Block = Eigen::Matrix<double, kB, kB>;
+using RowMajor3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
+
+// Node j's rotation and translation in a packed state (or gradient) vector.
+Eigen::Map<const RowMajor3> RotationOf(const Eigen::VectorXd& x, int j) {
+  return Eigen::Map<const RowMajor3>(x.data() + kB * j);
+}
+Eigen::Map<RowMajor3> RotationOf(Eigen::VectorXd& x, int j) {
+  return Eigen::Map<RowMajor3>(x.data() + kB * j);
+}
 
 // The Gauss-Newton matrix J^T J of the node transforms, symmetric, as 12 x 12 blocks: the
 // pairs of nodes (i <= j) some term couples, in order of i then j. Memory grows with the
@@ -79,7 +88,7 @@ class BlockMatrix {
 // E_rot's six residuals of one node (eq. 6: the entries of R^T R - I, each off-diagonal one
 // standing for two) and their Jacobian in R (row-major).
 struct RotationTerm {
-  RotationTerm(const double* R, double weight) {
+  RotationTerm(const RowMajor3& R, double weight) {
     static constexpr int kPairs[6][2] = {{0, 0}, {1, 1}, {2, 2}, {0, 1}, {0, 2}, {1, 2}};
     J.setZero();
     for (int q = 0; q < 6; ++q) {
@@ -87,9 +96,9 @@ struct RotationTerm {
       const double w = std::sqrt(q < 3 ? weight : 2.0 * weight);
       double dot = 0.0;
       for (int i = 0; i < 3; ++i) {
-        dot += R[3 * i + a] * R[3 * i + b];
-        J(q, 3 * i + a) += w * R[3 * i + b];
-        J(q, 3 * i + b) += w * R[3 * i + a];
+        dot += R(i, a) * R(i, b);
+        J(q, 3 * i + a) += w * R(i, b);
+        J(q, 3 * i + b) += w * R(i, a);
       }
       r[q] = w * (dot - (q < 3 ? 1.0 : 0.0));
     }
@@ -101,7 +110,7 @@ struct RotationTerm {
 // E_rig's nine residuals of one bridge (eq. 8: R_j^T R_k - I) and their Jacobian in R_j, then
 // R_k.
 struct RigidityTerm {
-  RigidityTerm(const double* Rj, const double* Rk, double weight) {
+  RigidityTerm(const RowMajor3& Rj, const RowMajor3& Rk, double weight) {
     const double w = std::sqrt(weight);
     J.setZero();
     for (int a = 0; a < 3; ++a) {
@@ -109,9 +118,9 @@ struct RigidityTerm {
         const int q = 3 * a + b;
         double dot = 0.0;
         for (int i = 0; i < 3; ++i) {
-          dot += Rj[3 * i + a] * Rk[3 * i + b];
-          J(q, 3 * i + a) += w * Rk[3 * i + b];
-          J(q, 9 + 3 * i + b) += w * Rj[3 * i + a];
+          dot += Rj(i, a) * Rk(i, b);
+          J(q, 3 * i + a) += w * Rk(i, b);
+          J(q, 9 + 3 * i + b) += w * Rj(i, a);
         }
         r[q] = w * (dot - (a == b ? 1.0 : 0.0));
       }
@@ -159,17 +168,14 @@ class Problem {
   double Cost(const Eigen::VectorXd& x, Eigen::VectorXd* gradient) const {
     double cost = 0.0;
     if (gradient != nullptr) gradient->setZero(kB * n_);
-    const auto at = [&x](int j) { return x.data() + kB * j; };
     // Data terms, eqs. (5) and (14).
     for (const PointConstraint& c : constraints_) {
       const double s = std::sqrt(options_.w_data * c.weight);
       Eigen::Vector3d p = Eigen::Vector3d::Zero();
       for (std::size_t k = 0; k < c.nodes.size(); ++k) {
         const int j = c.nodes[k];
-        const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> Rj(at(j));
-        const Eigen::Map<const Eigen::Vector3d> tj(at(j) + 9);
         const Eigen::Vector3d g = graph_.nodes.col(j);
-        p += c.weights[k] * (Rj * (c.rest - g) + g + tj);
+        p += c.weights[k] * (RotationOf(x, j) * (c.rest - g) + g + x.segment<3>(kB * j + 9));
       }
       // The residual's rows, each as a direction e (3-vector) and value r: row = e . (p - target).
       Eigen::Vector3d weighted;  // sum over rows of r * e
@@ -187,11 +193,8 @@ class Problem {
         const int j = c.nodes[k];
         const Eigen::Vector3d d = c.rest - graph_.nodes.col(j);
         const Eigen::Vector3d f = s * c.weights[k] * weighted;
-        double* gj = gradient->data() + kB * j;
-        for (int a = 0; a < 3; ++a) {
-          for (int b = 0; b < 3; ++b) gj[3 * a + b] += f[a] * d[b];
-          gj[9 + a] += f[a];
-        }
+        RotationOf(*gradient, j).noalias() += f * d.transpose();
+        gradient->segment<3>(kB * j + 9) += f;
       }
     }
     // E_reg, eq. (7).
@@ -200,29 +203,24 @@ class Problem {
       for (int j : graph_.neighbours[static_cast<std::size_t>(i)]) {
         const Eigen::Vector3d gi = graph_.nodes.col(i), gj = graph_.nodes.col(j);
         const Eigen::Vector3d d = gi - gj;
-        const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> Rj(at(j));
-        const Eigen::Map<const Eigen::Vector3d> tj(at(j) + 9), ti(at(i) + 9);
-        const Eigen::Vector3d r = wreg * (Rj * d + gj + tj - gi - ti);
+        const Eigen::Vector3d r = wreg * (RotationOf(x, j) * d + gj + x.segment<3>(kB * j + 9) -
+                                          gi - x.segment<3>(kB * i + 9));
         cost += 0.5 * r.squaredNorm();
         if (gradient == nullptr) continue;
-        double* gjp = gradient->data() + kB * j;
-        double* gip = gradient->data() + kB * i;
-        for (int a = 0; a < 3; ++a) {
-          for (int b = 0; b < 3; ++b) gjp[3 * a + b] += wreg * r[a] * d[b];
-          gjp[9 + a] += wreg * r[a];
-          gip[9 + a] -= wreg * r[a];
-        }
+        RotationOf(*gradient, j).noalias() += (wreg * r) * d.transpose();
+        gradient->segment<3>(kB * j + 9) += wreg * r;
+        gradient->segment<3>(kB * i + 9) -= wreg * r;
       }
     }
     // E_rot, eq. (6), and E_rig, eq. (8).
     for (int j = 0; j < n_; ++j) {
-      const RotationTerm term(x.data() + kB * j, options_.w_rot);
+      const RotationTerm term(RotationOf(x, j), options_.w_rot);
       cost += 0.5 * term.r.squaredNorm();
       if (gradient != nullptr)
         gradient->segment<9>(kB * j).noalias() += term.J.transpose() * term.r;
     }
     for (const auto& [j, k] : graph_.bridges) {
-      const RigidityTerm term(x.data() + kB * j, x.data() + kB * k, options_.w_rig);
+      const RigidityTerm term(RotationOf(x, j), RotationOf(x, k), options_.w_rig);
       cost += 0.5 * term.r.squaredNorm();
       if (gradient == nullptr) continue;
       gradient->segment<9>(kB * j).noalias() += term.J.leftCols<9>().transpose() * term.r;
@@ -235,11 +233,11 @@ class Problem {
   void Curvature(const Eigen::VectorXd& x, BlockMatrix* jtj) const {
     jtj->CopyValuesFrom(linear_);
     for (int j = 0; j < n_; ++j) {
-      const RotationTerm term(x.data() + kB * j, options_.w_rot);
+      const RotationTerm term(RotationOf(x, j), options_.w_rot);
       jtj->upper(j, j).topLeftCorner<9, 9>().noalias() += term.J.transpose() * term.J;
     }
     for (const auto& [j, k] : graph_.bridges) {
-      const RigidityTerm term(x.data() + kB * j, x.data() + kB * k, options_.w_rig);
+      const RigidityTerm term(RotationOf(x, j), RotationOf(x, k), options_.w_rig);
       const Eigen::Matrix<double, 18, 18> H = term.J.transpose() * term.J;
       jtj->upper(j, j).topLeftCorner<9, 9>() += H.topLeftCorner<9, 9>();
       jtj->upper(k, k).topLeftCorner<9, 9>() += H.bottomRightCorner<9, 9>();
