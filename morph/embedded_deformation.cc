@@ -17,7 +17,8 @@ constexpr int kMaxLinearIterations = 500;
 using Block = Eigen::Matrix<double, kB, kB>;
 using RowMajor3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
 
-// Node j's rotation and translation in a packed state (or gradient) vector.
+// Node j's rotation (row-major) in a packed state or gradient vector; its translation follows
+// at offset 9.
 Eigen::Map<const RowMajor3> RotationOf(const Eigen::VectorXd& x, int j) {
   return Eigen::Map<const RowMajor3>(x.data() + kB * j);
 }
@@ -88,7 +89,7 @@ class BlockMatrix {
 // E_rot's six residuals of one node (eq. 6: the entries of R^T R - I, each off-diagonal one
 // standing for two) and their Jacobian in R (row-major).
 struct RotationTerm {
-  RotationTerm(const RowMajor3& R, double weight) {
+  RotationTerm(const Eigen::Ref<const RowMajor3>& R, double weight) {
     static constexpr int kPairs[6][2] = {{0, 0}, {1, 1}, {2, 2}, {0, 1}, {0, 2}, {1, 2}};
     J.setZero();
     for (int q = 0; q < 6; ++q) {
@@ -110,7 +111,8 @@ struct RotationTerm {
 // E_rig's nine residuals of one bridge (eq. 8: R_j^T R_k - I) and their Jacobian in R_j, then
 // R_k.
 struct RigidityTerm {
-  RigidityTerm(const RowMajor3& Rj, const RowMajor3& Rk, double weight) {
+  RigidityTerm(const Eigen::Ref<const RowMajor3>& Rj, const Eigen::Ref<const RowMajor3>& Rk,
+               double weight) {
     const double w = std::sqrt(weight);
     J.setZero();
     for (int a = 0; a < 3; ++a) {
@@ -403,13 +405,11 @@ PointConstraint ConstrainPoint(const NodeWeights& weights, Eigen::Index column,
 }
 
 Eigen::Matrix3d DeformationState::rotation(int j) const {
-  return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(
-      R[static_cast<std::size_t>(j)].data());
+  return Eigen::Map<const RowMajor3>(R[static_cast<std::size_t>(j)].data());
 }
 
 void DeformationState::set_rotation(int j, const Eigen::Matrix3d& A) {
-  Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(R[static_cast<std::size_t>(j)].data()) =
-      A;
+  Eigen::Map<RowMajor3>(R[static_cast<std::size_t>(j)].data()) = A;
 }
 
 namespace {

@@ -31,7 +31,8 @@ struct LcmListenOptions {
   double timeout_s = 10;  ///< exit 3 if they have not by then
 };
 
-/// `vbutcher lcm-listen`: prints each cut-lines message received and checks it (valid,
+/// `vbutcher lcm-listen`: prints "lcm-listen: listening on URL" once subscribed (a script may
+/// start publishing then), then each cut-lines message received and checks it (valid,
 /// sequence numbers increasing); counts (and on request prints) status and diagnostics
 /// messages. A malformed message is reported and counted, never fatal. Exit 0 when the counts
 /// were reached with no invalid, out-of-order or malformed message, else 3.

@@ -34,6 +34,8 @@ printf 'vbutcher-job-state 1\ncarcass 0\nsequence 0\n' >"$work/job-state"
 # 40 s in a sanitizer build on a loaded 2-core machine; ctest's limit is 1200 s).
 "$vbutcher" lcm-listen --url "$url" --count 4 --timeout 1000 >"$work/listen.txt" &
 listener=$!
+for _ in $(seq 300); do grep -qs "^lcm-listen: listening on" "$work/listen.txt" && break; sleep 0.1; done
+grep -qs "^lcm-listen: listening on" "$work/listen.txt" || fail "lcm-listen did not subscribe in 30 s"
 "$daemon" --config "$work/vbd.yaml" --run-seconds 1000 2>"$work/daemon.log" &
 daemon_pid=$!
 for _ in $(seq 100); do grep -q "LCM on" "$work/daemon.log" && break; sleep 0.1; done

@@ -64,7 +64,8 @@ start() {  # start <name> <config> <seconds> <statuses> <timeout>: notify socket
   "$vbutcher" lcm-listen --url "$url" --count 0 --status-count "$4" --diagnostic-count 1 \
     --status --diagnostics --timeout "$5" >"$work/$1.listen.txt" &
   listener=$!
-  for _ in $(seq 300); do grep -q "^lcm-listen: listening on" "$work/$1.listen.txt" && break; sleep 0.1; done
+  for _ in $(seq 300); do grep -qs "^lcm-listen: listening on" "$work/$1.listen.txt" && break; sleep 0.1; done
+  grep -qs "^lcm-listen: listening on" "$work/$1.listen.txt" || fail "$1: lcm-listen did not subscribe in 30 s"
   NOTIFY_SOCKET="$work/$1.sock" "$daemon" --config "$work/$2" --run-seconds "$3" \
     2>"$work/$1.daemon.log" &
   daemon_pid=$!

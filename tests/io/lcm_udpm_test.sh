@@ -22,24 +22,45 @@ listen() {
   shift
   "$vbutcher" lcm-listen --url "$url" "$@" >"$out" &
   listener=$!
-  for _ in $(seq 300); do grep -q "^lcm-listen: listening on" "$out" && return 0; sleep 0.1; done
-  echo "FAIL: lcm-listen did not subscribe within 30 s:"
+  for _ in $(seq 300); do
+    grep -qs "^lcm-listen: listening on" "$out" && return 0
+    kill -0 $listener 2>/dev/null || break
+    sleep 0.1
+  done
+  echo "FAIL: lcm-listen did not subscribe (exited, or 30 s passed):"
   cat "$out"
   exit 1
 }
+# The sockets bound to the LCM port in this namespace: one per process that has subscribed.
+receivers() { awk '$2 ~ /:1DF3$/' /proc/net/udp | wc -l; }
 
 # 1. Live: a listener and the logger, then the publisher.
 lcm-logger --lcm-url="$url" --quiet "$work/run.lcmlog" &
 logger=$!
+for _ in $(seq 300); do [ "$(receivers)" -ge 1 ] && break; sleep 0.1; done
+[ "$(receivers)" -ge 1 ] || { echo "FAIL: lcm-logger did not bind the LCM port in 30 s"; exit 1; }
 listen "$work/live.txt" --count $count --timeout 20
-sleep 0.5  # lcm-logger says nothing when it has subscribed; it started before the listener
 "$vbutcher" lcm-publish --url "$url" --cuts "$cuts" --carcass-id netns-test --count $count --period-ms 10
 wait $listener || { echo "FAIL: live listener:"; cat "$work/live.txt"; exit 1; }
 sleep 0.3
 kill -INT $logger
 wait $logger || true
 grep -q "received $count invalid 0 out_of_order 0" "$work/live.txt" || { cat "$work/live.txt"; exit 1; }
-[ -s "$work/run.lcmlog" ] || { echo "FAIL: lcm-logger wrote nothing"; exit 1; }
+# What lcm-logger recorded: the events of the log (sync word, event number, time, channel and
+# data lengths, channel, data), counted by channel.
+logged=$(/usr/bin/python3 - "$work/run.lcmlog" <<'PY'
+import struct, sys
+data, at, n = open(sys.argv[1], "rb").read(), 0, 0
+while at + 28 <= len(data):
+    sync, _, _, channel_len, data_len = struct.unpack(">IqqII", data[at:at + 28])
+    if sync != 0xEDA1DA01:
+        sys.exit("not an LCM log event at byte %d" % at)
+    n += data[at + 28:at + 28 + channel_len] == b"VB_CUT_LINES"
+    at += 28 + channel_len + data_len
+print(n)
+PY
+) || { echo "FAIL: the log lcm-logger wrote cannot be read: $logged"; exit 1; }
+[ "$logged" = $count ] || { echo "FAIL: lcm-logger recorded $logged of $count cut-lines messages"; exit 1; }
 
 # 2. Replay: lcm-logplayer plays the log back to a new listener.
 listen "$work/replay.txt" --count $count --timeout 20
