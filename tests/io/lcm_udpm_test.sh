@@ -47,7 +47,7 @@ kill -INT $logger
 wait $logger || true
 grep -q "received $count invalid 0 out_of_order 0" "$work/live.txt" || { cat "$work/live.txt"; exit 1; }
 # What lcm-logger recorded: the events of the log (sync word, event number, time, channel and
-# data lengths, channel, data), counted by channel.
+# data lengths, channel, data); those on the cut-lines channel counted.
 logged=$(/usr/bin/python3 - "$work/run.lcmlog" <<'PY'
 import struct, sys
 data, at, n = open(sys.argv[1], "rb").read(), 0, 0
