@@ -17,14 +17,15 @@ constexpr int kMaxLinearIterations = 500;
 using Block = Eigen::Matrix<double, kB, kB>;
 using RowMajor3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
 
-// Node j's rotation (row-major) in a packed state or gradient vector; its translation follows
-// at offset 9.
+// Node j's rotation (row-major) and translation in a packed state or gradient vector.
 Eigen::Map<const RowMajor3> RotationOf(const Eigen::VectorXd& x, int j) {
   return Eigen::Map<const RowMajor3>(x.data() + kB * j);
 }
 Eigen::Map<RowMajor3> RotationOf(Eigen::VectorXd& x, int j) {
   return Eigen::Map<RowMajor3>(x.data() + kB * j);
 }
+auto TranslationOf(const Eigen::VectorXd& x, int j) { return x.segment<3>(kB * j + 9); }
+auto TranslationOf(Eigen::VectorXd& x, int j) { return x.segment<3>(kB * j + 9); }
 
 // The Gauss-Newton matrix J^T J of the node transforms, symmetric, as 12 x 12 blocks: the
 // pairs of nodes (i <= j) some term couples, in order of i then j. Memory grows with the
@@ -177,7 +178,7 @@ class Problem {
       for (std::size_t k = 0; k < c.nodes.size(); ++k) {
         const int j = c.nodes[k];
         const Eigen::Vector3d g = graph_.nodes.col(j);
-        p += c.weights[k] * (RotationOf(x, j) * (c.rest - g) + g + x.segment<3>(kB * j + 9));
+        p += c.weights[k] * (RotationOf(x, j) * (c.rest - g) + g + TranslationOf(x, j));
       }
       // The residual's rows, each as a direction e (3-vector) and value r: row = e . (p - target).
       Eigen::Vector3d weighted;  // sum over rows of r * e
@@ -196,7 +197,7 @@ class Problem {
         const Eigen::Vector3d d = c.rest - graph_.nodes.col(j);
         const Eigen::Vector3d f = s * c.weights[k] * weighted;
         RotationOf(*gradient, j).noalias() += f * d.transpose();
-        gradient->segment<3>(kB * j + 9) += f;
+        TranslationOf(*gradient, j) += f;
       }
     }
     // E_reg, eq. (7).
@@ -205,13 +206,13 @@ class Problem {
       for (int j : graph_.neighbours[static_cast<std::size_t>(i)]) {
         const Eigen::Vector3d gi = graph_.nodes.col(i), gj = graph_.nodes.col(j);
         const Eigen::Vector3d d = gi - gj;
-        const Eigen::Vector3d r = wreg * (RotationOf(x, j) * d + gj + x.segment<3>(kB * j + 9) -
-                                          gi - x.segment<3>(kB * i + 9));
+        const Eigen::Vector3d r =
+            wreg * (RotationOf(x, j) * d + gj + TranslationOf(x, j) - gi - TranslationOf(x, i));
         cost += 0.5 * r.squaredNorm();
         if (gradient == nullptr) continue;
         RotationOf(*gradient, j).noalias() += (wreg * r) * d.transpose();
-        gradient->segment<3>(kB * j + 9) += wreg * r;
-        gradient->segment<3>(kB * i + 9) -= wreg * r;
+        TranslationOf(*gradient, j) += wreg * r;
+        TranslationOf(*gradient, i) -= wreg * r;
       }
     }
     // E_rot, eq. (6), and E_rig, eq. (8).
@@ -518,7 +519,7 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
   if (options.deadline.Passed()) return finish("past the morph's deadline");
   for (int j = 0; j < n; ++j) {
     state->R[static_cast<std::size_t>(j)] = x.segment<9>(kB * j);
-    state->t[static_cast<std::size_t>(j)] = x.segment<3>(kB * j + 9);
+    state->t[static_cast<std::size_t>(j)] = TranslationOf(x, j);
   }
   out.usable = true;  // every accepted cost is finite
   out.final_cost = cost;
