@@ -337,14 +337,27 @@ class Problem {
   BlockMatrix linear_;
 };
 
+// SolveBlockCg's buffers, sized once per solve and reused by every Levenberg-Marquardt step.
+struct CgScratch {
+  explicit CgScratch(int num_nodes)
+      : inverse(static_cast<std::size_t>(num_nodes)),
+        r(kB * num_nodes),
+        z(kB * num_nodes),
+        p(kB * num_nodes),
+        Ap(kB * num_nodes) {}
+  std::vector<Block> inverse;  // per node, its damped diagonal block's inverse
+  Eigen::VectorXd r, z, p, Ap;
+};
+
 // Conjugate gradients on (H + diag(damping)) x = b, preconditioned by the inverse of each
 // node's damped diagonal block; stops when |residual| <= tolerance |b|, after
 // @p max_iterations, or once @p deadline passed.
+// @pre @p scratch was made for H.num_nodes() nodes.
 void SolveBlockCg(const BlockMatrix& H, const Eigen::VectorXd& damping, const Eigen::VectorXd& b,
                   double tolerance, int max_iterations, const MorphDeadline& deadline,
-                  Eigen::VectorXd* x) {
+                  CgScratch* scratch, Eigen::VectorXd* x) {
   const int n = H.num_nodes();
-  std::vector<Block> inverse(static_cast<std::size_t>(n));
+  std::vector<Block>& inverse = scratch->inverse;
   for (int j = 0; j < n; ++j) {
     Block D = H.diagonal(j);
     D.diagonal() += damping.segment<kB>(kB * j);
@@ -356,7 +369,11 @@ void SolveBlockCg(const BlockMatrix& H, const Eigen::VectorXd& damping, const Ei
           inverse[static_cast<std::size_t>(j)] * r.segment<kB>(kB * j);
   };
   x->setZero(b.size());
-  Eigen::VectorXd r = b, z(b.size()), p(b.size()), Ap(b.size());
+  Eigen::VectorXd& r = scratch->r;
+  Eigen::VectorXd& z = scratch->z;
+  Eigen::VectorXd& p = scratch->p;
+  Eigen::VectorXd& Ap = scratch->Ap;
+  r = b;
   const double limit = tolerance * tolerance * b.squaredNorm();
   if (r.squaredNorm() <= limit) return;
   precondition(r, &z);
@@ -472,6 +489,7 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
   double nu = 2.0;
   Eigen::VectorXd damping(size), step(size), Hstep(size), next(size);
   const Eigen::VectorXd undamped = Eigen::VectorXd::Zero(size);
+  CgScratch cg(n);
   std::string stop = "maximum iterations";
   int iteration = 0;
   for (; iteration < options.max_iterations; ++iteration) {
@@ -485,7 +503,7 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
       for (int a = 0; a < kB; ++a) damping[kB * j + a] = mu * std::clamp(D(a, a), 1e-6, 1e32);
     }
     SolveBlockCg(jtj, damping, -gradient, options.linear_tolerance, kMaxLinearIterations,
-                 options.deadline, &step);
+                 options.deadline, &cg, &step);
     jtj.Multiply(undamped, step, &Hstep);
     const double predicted = -(gradient.dot(step) + 0.5 * step.dot(Hstep));
     next = x + step;
