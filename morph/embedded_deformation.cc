@@ -357,6 +357,7 @@ void SolveBlockCg(const BlockMatrix& H, const Eigen::VectorXd& damping, const Ei
                   double tolerance, int max_iterations, const MorphDeadline& deadline,
                   CgScratch* scratch, Eigen::VectorXd* x) {
   const int n = H.num_nodes();
+  VB_DEMAND(static_cast<int>(scratch->inverse.size()) == n && scratch->r.size() == b.size());
   std::vector<Block>& inverse = scratch->inverse;
   for (int j = 0; j < n; ++j) {
     Block D = H.diagonal(j);
