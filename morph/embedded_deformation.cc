@@ -488,7 +488,7 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
   // grows by 2, 4, 8, ...
   double mu = 1e-4;
   double nu = 2.0;
-  Eigen::VectorXd damping(size), step(size), Hstep(size), next(size);
+  Eigen::VectorXd damping(size), rhs(size), step(size), Hstep(size), next(size);
   const Eigen::VectorXd undamped = Eigen::VectorXd::Zero(size);
   CgScratch cg(n);
   std::string stop = "maximum iterations";
@@ -503,7 +503,8 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
       const Block& D = jtj.diagonal(j);
       for (int a = 0; a < kB; ++a) damping[kB * j + a] = mu * std::clamp(D(a, a), 1e-6, 1e32);
     }
-    SolveBlockCg(jtj, damping, -gradient, options.linear_tolerance, kMaxLinearIterations,
+    rhs = -gradient;
+    SolveBlockCg(jtj, damping, rhs, options.linear_tolerance, kMaxLinearIterations,
                  options.deadline, &cg, &step);
     jtj.Multiply(undamped, step, &Hstep);
     const double predicted = -(gradient.dot(step) + 0.5 * step.dot(Hstep));
