@@ -44,13 +44,17 @@ std::string TopologyReport::Describe() const {
   return s;
 }
 
-std::vector<std::vector<int>> FacesOfVertices(const TriangleMesh& mesh) {
-  std::vector<std::vector<int>> faces(static_cast<std::size_t>(mesh.num_vertices()));
-  for (Eigen::Index f = 0; f < mesh.F.cols(); ++f) {
+VertexFaces::VertexFaces(const TriangleMesh& mesh)
+    : first_(static_cast<std::size_t>(mesh.num_vertices()) + 1, 0),
+      faces_(static_cast<std::size_t>(3 * mesh.F.cols())) {
+  for (Eigen::Index f = 0; f < mesh.F.cols(); ++f)
+    for (Eigen::Index k = 0; k < 3; ++k) ++first_[static_cast<std::size_t>(mesh.F(k, f)) + 1];
+  for (std::size_t v = 1; v < first_.size(); ++v) first_[v] += first_[v - 1];
+  std::vector<int> filled(first_.begin(), first_.end() - 1);  // next free slot per vertex
+  for (Eigen::Index f = 0; f < mesh.F.cols(); ++f)
     for (Eigen::Index k = 0; k < 3; ++k)
-      faces[static_cast<std::size_t>(mesh.F(k, f))].push_back(static_cast<int>(f));
-  }
-  return faces;
+      faces_[static_cast<std::size_t>(filled[static_cast<std::size_t>(mesh.F(k, f))]++)] =
+          static_cast<int>(f);
 }
 
 TopologyReport AnalyzeTopology(const TriangleMesh& mesh) {
@@ -110,11 +114,11 @@ TopologyReport AnalyzeTopology(const TriangleMesh& mesh) {
 
   // A vertex is manifold when its incident faces, linked through shared edges at the vertex,
   // form one group. Count groups per vertex with a union-find over face slots.
-  const std::vector<std::vector<int>> faces_of_vertex = FacesOfVertices(mesh);
+  const VertexFaces faces_of_vertex(mesh);
   std::sort(vertex_links.begin(), vertex_links.end());
   std::size_t link = 0;
   for (int v = 0; v < r.num_vertices; ++v) {
-    const auto& faces = faces_of_vertex[static_cast<std::size_t>(v)];
+    const std::span<const int> faces = faces_of_vertex[v];
     if (faces.empty()) continue;
     boost::disjoint_sets_with_storage<> fan(faces.size());
     auto slot = [&faces](int face) {

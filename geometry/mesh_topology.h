@@ -1,5 +1,6 @@
 #pragma once
 
+#include <span>
 #include <string>
 #include <vector>
 
@@ -41,9 +42,26 @@ struct TopologyReport {
   std::string Describe() const;
 };
 
+/// The faces round each vertex of a mesh, in increasing order, all in one array (compressed
+/// rows: three allocations for the whole mesh).
+class VertexFaces {
+ public:
+  /// @pre every index in mesh.F is in [0, #V).
+  explicit VertexFaces(const TriangleMesh& mesh);
+  /// The faces round vertex @p v. @pre 0 <= v < the mesh's vertex count.
+  std::span<const int> operator[](int v) const {
+    const auto at = static_cast<std::size_t>(v);
+    return {faces_.data() + first_[at], static_cast<std::size_t>(first_[at + 1] - first_[at])};
+  }
+
+ private:
+  std::vector<int> first_;  // vertex v's faces are faces_[first_[v], first_[v + 1])
+  std::vector<int> faces_;
+};
+
 /// The faces round each vertex of @p mesh, in increasing order.
 /// @pre every index in mesh.F is in [0, #V).
-std::vector<std::vector<int>> FacesOfVertices(const TriangleMesh& mesh);
+inline VertexFaces FacesOfVertices(const TriangleMesh& mesh) { return VertexFaces(mesh); }
 
 /// Counts boundary, non-manifold and inconsistently oriented edges, loose vertices, vertex
 /// fans and components of @p mesh. O(F log F).

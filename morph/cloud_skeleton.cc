@@ -8,6 +8,7 @@
 #include <boost/pending/disjoint_sets.hpp>
 #include <cmath>
 #include <map>
+#include <span>
 #include <unordered_map>
 
 #include "geometry/mesh_measures.h"
@@ -17,14 +18,27 @@
 namespace vb::morph {
 namespace {
 
+// Edges kept in a vector (the last vecS), not a list: one allocation per edge is most of a
+// skeleton's cost in allocations, and the edges' order is the same.
 using Graph =
     boost::adjacency_list<boost::vecS, boost::vecS, boost::undirectedS, boost::no_property,
-                          boost::property<boost::edge_weight_t, double>>;
+                          boost::property<boost::edge_weight_t, double>, boost::no_property,
+                          boost::vecS>;
+
+// The input columns each downsampled point averages: point i's are
+// columns[first[i], first[i + 1]).
+struct Members {
+  std::vector<int> first;
+  std::vector<int> columns;
+  std::span<const int> operator[](int i) const {
+    const auto at = static_cast<std::size_t>(i);
+    return {columns.data() + first[at], static_cast<std::size_t>(first[at + 1] - first[at])};
+  }
+};
 
 // Voxel-grid downsampling: one centroid per occupied cell; keeps, per output point, the
 // input columns it averages.
-Eigen::Matrix3Xd Downsample(const Eigen::Matrix3Xd& points, double cell,
-                            std::vector<std::vector<int>>* members) {
+Eigen::Matrix3Xd Downsample(const Eigen::Matrix3Xd& points, double cell, Members* members) {
   const Eigen::Vector3d lo = points.rowwise().minCoeff();
   std::vector<std::pair<std::array<std::int64_t, 3>, int>> keyed(
       static_cast<std::size_t>(points.cols()));
@@ -37,16 +51,17 @@ Eigen::Matrix3Xd Downsample(const Eigen::Matrix3Xd& points, double cell,
   }
   std::sort(keyed.begin(), keyed.end());
   std::vector<Eigen::Vector3d> centres;
-  members->clear();
+  members->first.assign(1, 0);
+  members->columns.resize(keyed.size());
   for (std::size_t i = 0; i < keyed.size();) {
     std::size_t j = i;
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    members->emplace_back();
     while (j < keyed.size() && keyed[j].first == keyed[i].first) {
       sum += points.col(keyed[j].second);
-      members->back().push_back(keyed[j].second);
+      members->columns[j] = keyed[j].second;
       ++j;
     }
+    members->first.push_back(static_cast<int>(j));
     centres.push_back(sum / static_cast<double>(j - i));
     i = j;
   }
@@ -64,7 +79,7 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
   const double size = geometry::BoundingBoxDiagonal(input);
   if (!(size > 0.0)) throw InputError("skeleton: the points have no extent");
 
-  std::vector<std::vector<int>> members;
+  Members members;
   Eigen::Matrix3Xd points = Downsample(input, options.voxel * size, &members);
   const int n = static_cast<int>(points.cols());
   {
@@ -269,11 +284,11 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
       skeleton.support.emplace_back();
     }
     node_of[static_cast<std::size_t>(i)] = it->second;
+    const std::span<const int> averaged = members[i];
     sums[static_cast<std::size_t>(it->second)] +=
-        points.col(i) * static_cast<double>(members[static_cast<std::size_t>(i)].size());
+        points.col(i) * static_cast<double>(averaged.size());
     auto& support = skeleton.support[static_cast<std::size_t>(it->second)];
-    support.insert(support.end(), members[static_cast<std::size_t>(i)].begin(),
-                   members[static_cast<std::size_t>(i)].end());
+    support.insert(support.end(), averaged.begin(), averaged.end());
   }
   skeleton.nodes.resize(3, static_cast<Eigen::Index>(sums.size()));
   for (std::size_t v = 0; v < sums.size(); ++v) {

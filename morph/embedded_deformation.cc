@@ -267,6 +267,10 @@ class Problem {
   // J^T J of the data terms and E_reg. A data row e . (sum_k w_k (R_k d_k + g_k + t_k)) has,
   // on node k, the 12 entries w_k (e_a d_k[b] on R's row a, e_a on t_a).
   void AssembleLinear() {
+    // A plane row's per-node vectors, as columns; sized once for the most nodes a point has.
+    std::size_t most_nodes = 0;
+    for (const PointConstraint& c : constraints_) most_nodes = std::max(most_nodes, c.nodes.size());
+    Eigen::Matrix<double, kB, Eigen::Dynamic> u(kB, static_cast<Eigen::Index>(most_nodes));
     for (const PointConstraint& c : constraints_) {
       const double s2 = options_.w_data * c.weight;
       const std::size_t m = c.nodes.size();
@@ -275,7 +279,6 @@ class Problem {
       };
       if (!c.normal.isZero()) {
         // One row: a rank-one term u_a u_b^T per node pair.
-        Eigen::Matrix<double, kB, Eigen::Dynamic> u(kB, static_cast<Eigen::Index>(m));
         for (std::size_t k = 0; k < m; ++k) {
           const Eigen::Vector3d dk = d(k);
           for (int a = 0; a < 3; ++a) {

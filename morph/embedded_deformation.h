@@ -2,6 +2,7 @@
 
 #include <Eigen/Core>
 #include <atomic>
+#include <boost/container/small_vector.hpp>
 #include <chrono>
 #include <span>
 #include <string>
@@ -44,8 +45,11 @@ struct PointConstraint {
   Eigen::Vector3d rest;  ///< position before deformation
   Eigen::Vector3d target;
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();
-  std::vector<int> nodes;  ///< nodes acting on the point
-  std::vector<double> weights;
+  /// Nodes acting on the point, and their weights: held inline up to kInlineNodes (the
+  /// template's profile uses 4), so that making a constraint allocates nothing.
+  static constexpr std::size_t kInlineNodes = 8;
+  boost::container::small_vector<int, kInlineNodes> nodes;
+  boost::container::small_vector<double, kInlineNodes> weights;
   /// Multiplies the data weight (w_data) of this constraint; positive.
   double weight = 1.0;
 };

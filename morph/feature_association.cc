@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 namespace vb::morph {
 
@@ -43,6 +44,8 @@ struct Search {
     Similarity fit;
   };
   std::vector<Candidate> best;  // sorted by cost, at most keep
+  // Evaluate's paired points on a and on b, one pair of matrices per count of pairs.
+  std::vector<std::pair<Eigen::Matrix3Xd, Eigen::Matrix3Xd>> paired;
   std::size_t keep = 16;
   long candidates = 0, pruned = 0;
 
@@ -68,14 +71,19 @@ struct Search {
     Eigen::Index n = 0;
     for (int j : assignment) n += j >= 0 ? 1 : 0;
     if (n < 3) return;
-    Eigen::Matrix3Xd src(3, n), dst(3, n);
+    const auto count = static_cast<std::size_t>(n);
+    if (paired.size() <= count) paired.resize(count + 1);
+    auto& [on_a, on_b] = paired[count];
+    on_a.resize(3, n);  // allocates only the first time for this count
+    on_b.resize(3, n);
     for (std::size_t i = 0, k = 0; i < a_slots.size(); ++i) {
       if (assignment[i] < 0) continue;
-      src.col(static_cast<Eigen::Index>(k)) = a.col(a_slots[i]);
-      dst.col(static_cast<Eigen::Index>(k)) = b.col(assignment[i]);
+      on_a.col(static_cast<Eigen::Index>(k)) = a.col(a_slots[i]);
+      on_b.col(static_cast<Eigen::Index>(k)) = b.col(assignment[i]);
       ++k;
     }
-    if (!a_is_from) std::swap(src, dst);
+    const Eigen::Matrix3Xd& src = a_is_from ? on_a : on_b;
+    const Eigen::Matrix3Xd& dst = a_is_from ? on_b : on_a;
     const Eigen::Matrix4d T = Eigen::umeyama(src, dst, true);
     const Eigen::Matrix3d sR = T.topLeftCorner<3, 3>();
     double cost = ((sR * src).colwise() + T.topRightCorner<3, 1>() - dst).squaredNorm();

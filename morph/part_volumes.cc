@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <limits>
+#include <span>
 
 #include "geometry/mesh_measures.h"
 #include "geometry/mesh_topology.h"
@@ -25,7 +26,7 @@ namespace {
 // closest point lies in v's one ring, which the nearest vertex's does on a mesh finer than
 // its curvature.
 double SignedDistanceNear(const geometry::TriangleMesh& mesh, const Eigen::Matrix3Xd& normals,
-                          const std::vector<int>& faces_of_v, int v, const Eigen::Vector3d& p) {
+                          std::span<const int> faces_of_v, int v, const Eigen::Vector3d& p) {
   double distance = normals.col(v).dot(p - mesh.V.col(v));
   double nearest = std::numeric_limits<double>::infinity();
   for (int f : faces_of_v) {
@@ -64,7 +65,7 @@ std::vector<geometry::PartMeasure> CutTargetParts(const geometry::TriangleMesh& 
   Eigen::Matrix3Xd computed_normals;  // for a mesh without
   const Eigen::Matrix3Xd& normals =
       morphed.has_normals() ? morphed.N : (computed_normals = geometry::VertexNormals(morphed));
-  const std::vector<std::vector<int>> faces_of = geometry::FacesOfVertices(morphed);
+  const geometry::VertexFaces faces_of(morphed);
   std::vector<int> found;
   if (nearest_vertex.empty()) {
     found = NearestEach(PointIndex(morphed.V), target);
@@ -76,8 +77,7 @@ std::vector<geometry::PartMeasure> CutTargetParts(const geometry::TriangleMesh& 
   for (Eigen::Index j = 0; j < target.cols(); ++j) {
     const Eigen::Vector3d p = target.col(j);
     const int v = nearest_vertex[static_cast<std::size_t>(j)];
-    const double d =
-        SignedDistanceNear(morphed, normals, faces_of[static_cast<std::size_t>(v)], v, p);
+    const double d = SignedDistanceNear(morphed, normals, faces_of[v], v, p);
     if (!(std::abs(d) <= max_offset)) continue;
     // Part k lies on the negative side of cuts 0..k-1 and the positive side of cut k.
     std::size_t part = 0;

@@ -1,6 +1,7 @@
 #include "morph/point_index.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <nanoflann.hpp>
 #include <utility>
@@ -40,10 +41,19 @@ void PointIndex::Nearest(const Eigen::Vector3d& q, int k, std::vector<int>* indi
     squared_distances->clear();
     return;
   }
-  std::vector<Eigen::Index> found(n);
+  // The tree's indices land on the stack for the usual few neighbours, so a query makes no
+  // allocation once the caller's vectors have grown.
+  constexpr std::size_t kOnStack = 64;
+  std::array<Eigen::Index, kOnStack> on_stack;
+  std::vector<Eigen::Index> on_heap;
+  Eigen::Index* found = on_stack.data();
+  if (n > kOnStack) {
+    on_heap.resize(n);
+    found = on_heap.data();
+  }
   squared_distances->resize(n);
   nanoflann::KNNResultSet<double, Eigen::Index> result(n);
-  result.init(found.data(), squared_distances->data());
+  result.init(found, squared_distances->data());
   tree_->adaptor.index->findNeighbors(result, q.data(), nanoflann::SearchParams());
   const std::size_t count = result.size();
   indices->resize(count);
@@ -59,7 +69,8 @@ void PointIndex::Within(const Eigen::Vector3d& q, double radius, int max_count,
   if (max_count == 0) return;
   // nanoflann keeps squared distances strictly below its bound (for this metric the bound is
   // a squared distance); d^2 < nextafter(r^2) is d^2 <= r^2.
-  std::vector<std::pair<Eigen::Index, double>> found;
+  // Each thread keeps its list between calls: nanoflann clears it and keeps its capacity.
+  thread_local std::vector<std::pair<Eigen::Index, double>> found;
   tree_->adaptor.index->radiusSearch(q.data(), std::nextafter(radius * radius, HUGE_VAL), found,
                                      nanoflann::SearchParams(32, 0.0F, false));
   const auto nearer = [](const auto& a, const auto& b) {

@@ -26,7 +26,8 @@ class PointIndex {
   /// more: nearest first, equal distances by index, with squared distances. The same as
   /// Nearest(q, max_count) cut at the radius, but for the order of equal distances, found
   /// without ranking the farther points. Safe to call from several threads at once; each
-  /// call allocates a list of every point within the radius, and frees it.
+  /// thread keeps a list of the points within the radius from one call to the next, as
+  /// long as the largest it has needed.
   /// @pre radius >= 0 (not NaN), max_count >= 0.
   void Within(const Eigen::Vector3d& q, double radius, int max_count, std::vector<int>* indices,
               std::vector<double>* squared_distances) const;
