@@ -60,6 +60,9 @@ NoiseReading ReadNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, 
   densities.reserve(residuals.capacity());
   Eigen::MatrixXd A(k, 6);
   Eigen::VectorXd height(k);
+  // Reused from sample to sample: a fit to k neighbours, the usual count, allocates nothing.
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(k, 6);
+  Eigen::VectorXd c(6);
   // Height above the neighbours' principal plane, as a quadratic in the in-plane coordinates.
   const auto monomials = [](const Eigen::Vector3d& q) {
     return (Eigen::Matrix<double, 1, 6>() << q.y() * q.y(), q.y() * q.z(), q.z() * q.z(), q.y(),
@@ -87,7 +90,8 @@ NoiseReading ReadNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, 
       A.row(r) = monomials(q);
       height[r] = q.x();
     }
-    const Eigen::VectorXd c = A.topRows(n).colPivHouseholderQr().solve(height.head(n));
+    qr.compute(A.topRows(n));
+    c = qr.solve(height.head(n));
     const Eigen::Vector3d q = frame.axes.transpose() * (points.col(i) - frame.mean);
     residuals.push_back(std::abs(q.x() - monomials(q).dot(c)));
     reaches.push_back(std::sqrt(farthest));
