@@ -126,10 +126,11 @@ std::vector<bool> FilterAssociations(const Eigen::Matrix3Xd& a1, const Eigen::Ma
   // (d) trim the worst until the termination criterion holds.
   const int max_trimmed = static_cast<int>(options.max_trimmed_fraction * m);
   for (int trimmed = 0; trimmed < max_trimmed && remaining > 2; ++trimmed) {
-    while (!current(heap.front())) {
+    while (!heap.empty() && !current(heap.front())) {
       std::pop_heap(heap.begin(), heap.end());
       heap.pop_back();
     }
+    if (heap.empty()) break;  // only NaN residuals left: none is ranked
     const double n = static_cast<double>(remaining);
     const double mean = sum / n;
     const double deviation = std::sqrt(std::max(0.0, sum_squares / n - mean * mean));

@@ -62,15 +62,17 @@ void PointIndex::Nearest(const Eigen::Vector3d& q, int k, std::vector<int>* indi
 }
 
 void PointIndex::Within(const Eigen::Vector3d& q, double radius, int max_count,
-                        std::vector<int>* indices, std::vector<double>* squared_distances) const {
+                        std::vector<int>* indices, std::vector<double>* squared_distances,
+                        RadiusList* scratch) const {
   VB_DEMAND(radius >= 0.0 && max_count >= 0);
   indices->clear();
   squared_distances->clear();
   if (max_count == 0) return;
   // nanoflann keeps squared distances strictly below its bound (for this metric the bound is
   // a squared distance); d^2 < nextafter(r^2) is d^2 <= r^2.
-  // Each thread keeps its list between calls: nanoflann clears it and keeps its capacity.
-  thread_local std::vector<std::pair<Eigen::Index, double>> found;
+  // nanoflann clears the list and keeps its capacity.
+  RadiusList own;
+  RadiusList& found = scratch != nullptr ? *scratch : own;
   tree_->adaptor.index->radiusSearch(q.data(), std::nextafter(radius * radius, HUGE_VAL), found,
                                      nanoflann::SearchParams(32, 0.0F, false));
   const auto nearer = [](const auto& a, const auto& b) {

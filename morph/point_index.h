@@ -2,6 +2,7 @@
 
 #include <Eigen/Core>
 #include <memory>
+#include <utility>
 #include <vector>
 
 namespace vb::morph {
@@ -22,15 +23,18 @@ class PointIndex {
   void Nearest(const Eigen::Vector3d& q, int k, std::vector<int>* indices,
                std::vector<double>* squared_distances) const;
 
+  /// Where Within lists every point within the radius before it keeps the nearest.
+  using RadiusList = std::vector<std::pair<Eigen::Index, double>>;
+
   /// The points at most @p radius from @p q, the nearest @p max_count of them when there are
   /// more: nearest first, equal distances by index, with squared distances. The same as
   /// Nearest(q, max_count) cut at the radius, but for the order of equal distances, found
-  /// without ranking the farther points. Safe to call from several threads at once; each
-  /// thread keeps a list of the points within the radius from one call to the next, as
-  /// long as the largest it has needed.
+  /// without ranking the farther points. Safe to call from several threads at once, each
+  /// with its own @p scratch: given one, a query allocates nothing once the scratch has held
+  /// the longest list; without, each call makes its own and frees it.
   /// @pre radius >= 0 (not NaN), max_count >= 0.
   void Within(const Eigen::Vector3d& q, double radius, int max_count, std::vector<int>* indices,
-              std::vector<double>* squared_distances) const;
+              std::vector<double>* squared_distances, RadiusList* scratch = nullptr) const;
 
   int size() const { return static_cast<int>(points_.cols()); }
 

@@ -31,17 +31,22 @@ TEST(MorphAllocationsTest, NeighbourQueriesAllocateNothingOnceWarm) {
   const PointIndex index(points);
   std::vector<int> found;
   std::vector<double> distances;
-  // Warm: the caller's vectors and this thread's radius list reach their largest size.
+  PointIndex::RadiusList within;
+  // Warm: the caller's vectors and radius list reach their largest size.
   index.Nearest(points.col(0), 64, &found, &distances);
-  index.Within(points.col(0), 0.2, 5000, &found, &distances);
+  index.Within(points.col(0), 0.2, 5000, &found, &distances, &within);
   const test::AllocationScope allocations;
   for (Eigen::Index i = 0; i < points.cols(); i += 7) {
     index.Nearest(points.col(i), 9, &found, &distances);
     ASSERT_EQ(found.size(), 9u);
-    index.Within(points.col(i), 0.05, 40, &found, &distances);
+    index.Within(points.col(i), 0.05, 40, &found, &distances, &within);
     ASSERT_FALSE(found.empty());
   }
   EXPECT_EQ(allocations.count(), 0);
+  // Without a radius list of its own, a query grows one (measured: 5 allocations here).
+  const test::AllocationScope unwarmed;
+  index.Within(points.col(0), 0.05, 40, &found, &distances);
+  EXPECT_GE(unwarmed.count(), 1);
   // Past 64 neighbours a query lists the tree's indices on the heap: one allocation.
   const test::AllocationScope many;
   index.Nearest(points.col(0), 65, &found, &distances);
@@ -64,9 +69,10 @@ TEST(MorphAllocationsTest, AConstraintHoldsItsNodesInline) {
 }
 
 // Eq. (12)'s filter keeps its graph in flat arrays and its order in one heap: a few dozen
-// allocations, most of them the kd-tree's pool, not several per association (measured: 20 for
-// 900 associations, 26 for 3,600; before, two growing vectors and a set node per association).
-TEST(MorphAllocationsTest, TheRigidityFilterAllocatesPerCallNotPerAssociation) {
+// allocations (its arrays, the heap's growth, the kd-tree's), not several per association
+// (measured: 20 for 900 associations, 26 for 3,600; before, two growing vectors and a set
+// node per association).
+TEST(MorphAllocationsTest, TheRigidityFilterAllocatesTensNotThousands) {
   for (const int side : {30, 60}) {
     const Eigen::Matrix3Xd a1 = Sheet(side);
     Eigen::Matrix3Xd a2 = a1;
@@ -81,9 +87,10 @@ TEST(MorphAllocationsTest, TheRigidityFilterAllocatesPerCallNotPerAssociation) {
 
 using MorphAllocationsLambTest = test::LambTemplateTest;
 
-// A whole morph of a lamb cloud (18,712 points) on a warm Morpher: measured 124,905
+// A whole morph of a lamb cloud (18,712 points) on a warm Morpher: measured 125,038
 // allocations (1,017,302 before the per-point steps above stopped allocating). Most of what
-// is left is the coarse stage's feature search and the cloud's skeleton.
+// is left is the coarse stage's feature search and the cloud's skeleton. Under AddressSanitizer
+// only operator new is counted (not Eigen's malloc), so there the ceiling holds loosely.
 TEST_F(MorphAllocationsLambTest, AWarmMorphStaysUnderItsCeiling) {
   const Eigen::Matrix3Xd cloud = test::HangingCloud(*carcass_, 4000037u, 0.004);
   MorphOptions options;
