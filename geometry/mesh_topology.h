@@ -59,10 +59,6 @@ class VertexFaces {
   std::vector<int> faces_;
 };
 
-/// The faces round each vertex of @p mesh, in increasing order.
-/// @pre every index in mesh.F is in [0, #V).
-inline VertexFaces FacesOfVertices(const TriangleMesh& mesh) { return VertexFaces(mesh); }
-
 /// Counts boundary, non-manifold and inconsistently oriented edges, loose vertices, vertex
 /// fans and components of @p mesh. O(F log F).
 /// @pre every index in mesh.F is in [0, #V).

@@ -84,11 +84,11 @@ void RefitNormals(const Eigen::Matrix3Xd& points, const PointIndex& index,
   ForEachBlock(pool, points.cols(), kBlock, [&](Eigen::Index first, Eigen::Index last) {
     std::vector<int> found;
     std::vector<double> distances;  // squared
-    PointIndex::RadiusList within;
+    PointIndex::RadiusList radius_list;
     for (Eigen::Index j = first; j < last; ++j) {
       const auto at = static_cast<std::size_t>(j);
       if (counts[at] <= 0) continue;
-      index.Within(points.col(j), radii[at], counts[at], &found, &distances, &within);
+      index.Within(points.col(j), radii[at], counts[at], &found, &distances, &radius_list);
       const std::size_t within = found.size();
       if (within < 3) continue;
       Eigen::Vector3d mean = Eigen::Vector3d::Zero();

@@ -45,8 +45,8 @@ struct PointConstraint {
   Eigen::Vector3d rest;  ///< position before deformation
   Eigen::Vector3d target;
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();
-  /// Nodes acting on the point, and their weights: held inline up to kInlineNodes (the
-  /// template's profile uses 4), so that making a constraint allocates nothing.
+  /// Nodes acting on the point, and their weights: held inline up to kInlineNodes
+  /// (templates are built with 4 per vertex), so that making a constraint allocates nothing.
   static constexpr std::size_t kInlineNodes = 8;
   boost::container::small_vector<int, kInlineNodes> nodes;
   boost::container::small_vector<double, kInlineNodes> weights;

@@ -68,11 +68,10 @@ void PointIndex::Within(const Eigen::Vector3d& q, double radius, int max_count,
   indices->clear();
   squared_distances->clear();
   if (max_count == 0) return;
+  RadiusList own;  // nanoflann clears a list it is given and keeps its capacity
+  RadiusList& found = scratch != nullptr ? *scratch : own;
   // nanoflann keeps squared distances strictly below its bound (for this metric the bound is
   // a squared distance); d^2 < nextafter(r^2) is d^2 <= r^2.
-  // nanoflann clears the list and keeps its capacity.
-  RadiusList own;
-  RadiusList& found = scratch != nullptr ? *scratch : own;
   tree_->adaptor.index->radiusSearch(q.data(), std::nextafter(radius * radius, HUGE_VAL), found,
                                      nanoflann::SearchParams(32, 0.0F, false));
   const auto nearer = [](const auto& a, const auto& b) {
