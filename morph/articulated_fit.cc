@@ -127,6 +127,7 @@ BranchGuide MakeBranchGuide(const TemplateModel& model, const SkeletonGraph& tar
   // Each graph node's limb: the branch whose skeleton nodes stand for its vertex.
   const auto num_vertices = static_cast<std::size_t>(model.V.cols());
   std::vector<int> vertex_branch(num_vertices, -1);
+  std::vector<double> vertex_along(num_vertices, 0.0);
   for (std::size_t a = 0; a < mine.size(); ++a) {
     const SkeletonBranch& branch = mine[a];
     if (!(branch.length() > 0)) continue;
@@ -137,12 +138,16 @@ BranchGuide MakeBranchGuide(const TemplateModel& model, const SkeletonGraph& tar
         const auto s = static_cast<std::size_t>(v);
         if (v < 0 || s >= num_vertices || vertex_branch[s] >= 0) continue;
         vertex_branch[s] = static_cast<int>(a);
+        vertex_along[s] = branch.distance[k] / branch.length();
       }
     }
   }
-  for (const int v : model.graph.node_vertex)
+  for (const int v : model.graph.node_vertex) {
     guide.node_branch.push_back(vertex_branch[static_cast<std::size_t>(v)]);
+    guide.node_along.push_back(vertex_along[static_cast<std::size_t>(v)]);
+  }
   guide.vertex_branch = std::move(vertex_branch);
+  guide.vertex_along = std::move(vertex_along);
   guide.target_points.resize(3, static_cast<Eigen::Index>(theirs.size()) * kSamples);
   for (std::size_t b = 0; b < theirs.size(); ++b) {
     guide.target_length.push_back(theirs[b].length());

@@ -92,8 +92,15 @@ struct ArticulationOptions {
   /// How far apart a swung limb and the target count at most, template sizes: a limb the
   /// target does not show (a camera shadow) gains little by lying on some other surface.
   /// Also how near (mean over its nodes) the first fit must have a limb to where TurnLimbs
-  /// would put it for that turn to be left out, the fit having done it.
+  /// would put it for that turn to be left out, the fit having done it; and how far (mean
+  /// over the graph nodes moved) a swing about a pivot beyond a root must move a limb for the
+  /// coarse stage to fit from it.
   double limb_swing_cap = 0.05;
+  /// Points along a limb it is swung about (SwingLimbs): k / (limb_swing_pivots + 1) of its
+  /// branch's length from the root (rounded to BranchGuide::kSamples), k = 0 .. pivots - 1,
+  /// only the part from the pivot out moving. 1: the root alone. The coarse stage fits from
+  /// the swing about the roots alone as well (AlignCoarse).
+  int limb_swing_pivots = 4;
   /// The data weight per graph node: each pair's weight is w_data times the node count over
   /// the pair count, so the balance with the regularisers does not depend on the sampling.
   EmbeddedDeformationOptions deformation{
@@ -122,6 +129,11 @@ struct BranchGuide {
   std::vector<int> node_branch;
   /// Per template vertex: the branch whose limb it lies on (-1: the trunk).
   std::vector<int> vertex_branch;
+  /// Per template vertex on a limb: how far out along its branch the skeleton node that
+  /// stands for it lies, a fraction of the branch's length (0 on the trunk).
+  std::vector<double> vertex_along;
+  /// Per deformation-graph node, likewise (its vertex's).
+  std::vector<double> node_along;
   /// Target side, in the target's frame and units, likewise.
   Eigen::Matrix3Xd target_points;
   std::vector<double> target_length;

@@ -454,19 +454,34 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     int iterations = options.choice_rounds + fit.rounds;
     const DeformationState first_state = fit.state;
     // Limbs that turned too far for closest points: the fit again from them turned onto the
-    // target's limbs (TurnLimbs) and from them swung to where they explain the target best
-    // (SwingLimbs), the better kept when it covers the target clearly better than the first.
+    // target's limbs (TurnLimbs), from them swung about their roots to where they explain the
+    // target best (SwingLimbs), and swung about points out along them as well where that
+    // explains it better still; the best kept when it covers the target clearly better than
+    // the first. The swing's score and the fit's disagreement do not always agree on the
+    // pivot, so both swings are fitted.
     if (turn_limbs) {
-      std::array<int, 2> moved{0, 0};
-      const std::array<DeformationState, 2> starts{
-          TurnLimbs(model, guide, target, target_index, to_target, options.articulation, &moved[0],
-                    &first_state),
-          SwingLimbs(model, guide, target, target_index, to_target, first_state,
-                     options.articulation, &moved[1], pool)};
-      // The two fits are independent: each on one of the pool's threads; the turned one is
-      // preferred on a tie, whatever the threads.
-      std::array<ArticulationResult, 2> again;
-      ForEach(pool, 2, [&](int k) {
+      std::array<int, 3> moved{0, 0, 0};
+      int beyond_roots = 0;
+      RootSwing about_roots;
+      std::array<DeformationState, 3> starts;
+      starts[0] = TurnLimbs(model, guide, target, target_index, to_target, options.articulation,
+                            &moved[0], &first_state);
+      starts[2] = SwingLimbs(model, guide, target, target_index, to_target, first_state,
+                             options.articulation, &moved[2], pool, &beyond_roots, &about_roots);
+      if (options.articulation.limb_swing_pivots > 1) {
+        starts[1] = std::move(about_roots.state);
+        moved[1] = about_roots.swung;
+      } else {
+        starts[1] = std::move(starts[2]);
+        moved[1] = moved[2];
+      }
+      // No limb moved far about a pivot beyond its root: that start differs from the swing
+      // about the roots by nudges the fit makes itself, if at all.
+      if (beyond_roots == 0) moved[2] = 0;
+      // The fits are independent: each on one of the pool's threads; on a tie the earlier
+      // start is preferred, whatever the threads.
+      std::array<ArticulationResult, 3> again;
+      ForEach(pool, static_cast<int>(again.size()), [&](int k) {
         const auto s = static_cast<std::size_t>(k);
         if (moved[s] == 0) return;
         again[s] = ArticulateTemplate(model, target, target_index, result.target_features.terminals,
@@ -474,7 +489,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
                                       posture_normals_or_none());
       });
       const double limit = options.articulation.limb_turn_gain * fit.disagreement;
-      for (std::size_t k = 0; k < 2; ++k) {
+      for (std::size_t k = 0; k < again.size(); ++k) {
         if (!again[k].ok || !(again[k].disagreement < limit) ||
             !(again[k].disagreement < fit.disagreement))
           continue;

@@ -55,16 +55,20 @@ double MeanNearest(const Eigen::Matrix3Xd& from, const Eigen::Matrix3Xd& to) {
   return sum / static_cast<double>(from.cols());
 }
 
-// @p state with every graph node of limb @p a (BranchGuide::node_branch) turned by @p turn and
-// moved so that each maps the limb's rest root @p root_rest onto @p root: the limb in its rest
-// shape, turned as a whole and hung from @p root. The other nodes keep their transforms.
+// @p state with every graph node of limb @p a (BranchGuide::node_branch) at least @p from of
+// the way out (BranchGuide::node_along) turned by @p turn and moved so that each maps the
+// rest point @p root_rest onto @p root: that part of the limb in its rest shape, turned as a
+// whole and hung from @p root. The other nodes keep their transforms.
 // @pre @p turn is a rotation.
 DeformationState CarriedAtRest(const DeformationGraph& graph, const BranchGuide& guide, int a,
-                               const Eigen::Matrix3d& turn, const Eigen::Vector3d& root_rest,
-                               const Eigen::Vector3d& root, const DeformationState& state) {
+                               double from, const Eigen::Matrix3d& turn,
+                               const Eigen::Vector3d& root_rest, const Eigen::Vector3d& root,
+                               const DeformationState& state) {
   DeformationState out = state;
   for (int j = 0; j < graph.num_nodes(); ++j) {
-    if (guide.node_branch[static_cast<std::size_t>(j)] != a) continue;
+    if (guide.node_branch[static_cast<std::size_t>(j)] != a ||
+        guide.node_along[static_cast<std::size_t>(j)] < from)
+      continue;
     const Eigen::Vector3d g = graph.nodes.col(j);
     // p -> turn (p - root_rest) + root for every point the node carries.
     out.set_rotation(j, turn);
@@ -72,6 +76,16 @@ DeformationState CarriedAtRest(const DeformationGraph& graph, const BranchGuide&
   }
   return out;
 }
+
+// A move of a limb's part from a pivot out (SwingLimbs).
+struct LimbMove {
+  double gain = 0.0;   // how much it lowers the two-way distance (a sum of template sizes)
+  double from = -1.0;  // the pivot, a fraction of the branch's length; below 0: no move
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d pivot = Eigen::Vector3d::Zero();  // posed
+  bool from_rest = false;                           // R turns the part in its rest shape, at_rest
+  DeformationState at_rest;
+};
 
 // @p count unit vectors spread evenly over the sphere (a Fibonacci lattice).
 std::vector<Eigen::Vector3d> SphereDirections(int count) {
@@ -156,14 +170,19 @@ DeformationState TurnLimbs(const TemplateModel& model, const BranchGuide& guide,
 DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide,
                             const Eigen::Matrix3Xd& target, const PointIndex& target_index,
                             const Similarity& placement, const DeformationState& start,
-                            const ArticulationOptions& options, int* swung, WorkerPool* pool) {
+                            const ArticulationOptions& options, int* swung, WorkerPool* pool,
+                            int* beyond_root, RootSwing* about_roots) {
   VB_DEMAND(target.cols() > 0 && target_index.size() == target.cols());
   VB_DEMAND(placement.Usable());
   VB_DEMAND(static_cast<int>(guide.node_branch.size()) == model.graph.num_nodes());
   VB_DEMAND(guide.vertex_branch.size() == static_cast<std::size_t>(model.V.cols()));
+  VB_DEMAND(guide.vertex_along.size() == guide.vertex_branch.size() &&
+            guide.node_along.size() == guide.node_branch.size());
   VB_DEMAND(static_cast<int>(start.t.size()) == model.graph.num_nodes());
   DeformationState state = start;
   if (swung != nullptr) *swung = 0;
+  if (beyond_root != nullptr) *beyond_root = 0;
+  if (about_roots != nullptr) *about_roots = RootSwing{start, 0};
   const int num_limbs = guide.num_template_branches();
   if (num_limbs == 0 || options.limb_swing_directions <= 0) return state;
   const Similarity back = placement.Inverse();
@@ -189,27 +208,37 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
   for (const int a : guide.node_branch)
     if (a >= 0) has_nodes[static_cast<std::size_t>(a)] = true;
   std::vector<double> scores(directions.size());
-  for (const int a : order) {
-    if (!has_nodes[static_cast<std::size_t>(a)]) continue;  // nothing it could move
-    const Eigen::Matrix3Xd posed = DeformPoints(model.graph, sampled.weights, sampled.rest, state);
+  const int pivots = std::max(1, options.limb_swing_pivots);
+  // The best move of limb @p a's part from @p fraction of its branch out (rounded to the
+  // branch's samples), from @p from_state (@p posed: the samples as it poses them); none
+  // (from < 0) when no move beats its place.
+  const auto move_from = [&](const DeformationState& from_state, const Eigen::Matrix3Xd& posed,
+                             int a, double fraction) {
+    const LimbMove none;
+    const int column = BranchGuide::SampleAt(fraction);
+    const double from = column / (BranchGuide::kSamples - 1.0);
     std::vector<Eigen::Index> mine, others;
-    for (Eigen::Index k = 0; k < ns; ++k)
-      (guide.vertex_branch[static_cast<std::size_t>(ids[static_cast<std::size_t>(k)])] == a
-           ? mine
-           : others)
-          .push_back(k);
-    if (mine.size() < 3 || others.empty()) continue;
+    for (Eigen::Index k = 0; k < ns; ++k) {
+      const auto v = static_cast<std::size_t>(ids[static_cast<std::size_t>(k)]);
+      (guide.vertex_branch[v] == a && guide.vertex_along[v] >= from ? mine : others).push_back(k);
+    }
+    if (mine.size() < 3 || others.empty()) return none;
+    bool carried = false;  // by a graph node the move turns
+    for (std::size_t j = 0; j < guide.node_branch.size() && !carried; ++j)
+      carried = guide.node_branch[j] == a && guide.node_along[j] >= from;
+    if (!carried) return none;
     const Eigen::Matrix3Xd limb = posed(Eigen::all, mine);
     const Eigen::Matrix3Xd trunk = posed(Eigen::all, others);
     NodeWeights root_weights;
-    root_weights.nodes = guide.template_weights.nodes.col(BranchGuide::Column(a, 0));
-    root_weights.weights = guide.template_weights.weights.col(BranchGuide::Column(a, 0));
+    root_weights.nodes = guide.template_weights.nodes.col(BranchGuide::Column(a, column));
+    root_weights.weights = guide.template_weights.weights.col(BranchGuide::Column(a, column));
     const Eigen::Vector3d root =
         DeformPoints(model.graph, root_weights,
-                     Eigen::Matrix3Xd(guide.template_rest.col(BranchGuide::Column(a, 0))), state)
+                     Eigen::Matrix3Xd(guide.template_rest.col(BranchGuide::Column(a, column))),
+                     from_state)
             .col(0);
     const Eigen::Vector3d axis = limb.rowwise().mean() - root;
-    if (!(axis.norm() > 0)) continue;
+    if (!(axis.norm() > 0)) return none;
     const double reach = (limb.colwise() - root).colwise().norm().maxCoeff();
     // The target's samples the limb can change: nearer its reach than to the rest of the
     // template and the cap. The others count the same in every direction.
@@ -264,11 +293,11 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
     DeformationState at_rest;
     bool from_rest = false;
     if (carrier >= 0) {
-      at_rest =
-          CarriedAtRest(model.graph, guide, a,
-                        NearestRotation(Eigen::JacobiSVD<Eigen::Matrix3d>(
-                            state.rotation(carrier), Eigen::ComputeFullU | Eigen::ComputeFullV)),
-                        guide.template_rest.col(BranchGuide::Column(a, 0)), root, state);
+      at_rest = CarriedAtRest(
+          model.graph, guide, a, from,
+          NearestRotation(Eigen::JacobiSVD<Eigen::Matrix3d>(
+              from_state.rotation(carrier), Eigen::ComputeFullU | Eigen::ComputeFullV)),
+          guide.template_rest.col(BranchGuide::Column(a, column)), root, from_state);
       const Eigen::Matrix3Xd rest_limb =
           DeformPoints(model.graph, sampled.weights, sampled.rest, at_rest)(Eigen::all, mine);
       if ((rest_limb.rowwise().mean() - root).norm() > 0) {
@@ -290,17 +319,80 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
     // own place up to the last digits, and is no swing. The cap, the most one distance adds,
     // keeps that margin for a limb that already lies on the target (a score near 0).
     const double own = score(limb, Eigen::Matrix3d::Identity());
-    if (!(best < own - kRounding * (own + cap))) continue;
-    if (from_rest) state = at_rest;
-    // Every graph node of the limb turns about the posed root: p -> R (T_j(p) - root) + root.
+    if (!(best < own - kRounding * (own + cap))) return none;
+    LimbMove m;
+    m.gain = own - best;
+    m.from = from;
+    m.R = R;
+    m.pivot = root;
+    m.from_rest = from_rest;
+    if (from_rest) m.at_rest = std::move(at_rest);
+    return m;
+  };
+  // @p m done to @p into: every graph node of limb @p a from the pivot out turns about it,
+  // p -> R (T_j(p) - pivot) + pivot, after that part is put in its rest shape when from_rest.
+  // Returns how far the moved nodes went, mean, template sizes.
+  const auto apply = [&](const LimbMove& m, int a, DeformationState* into) {
+    const std::vector<Eigen::Vector3d> before = into->t;
+    if (m.from_rest) *into = m.at_rest;
+    double travel = 0.0;
+    int count = 0;
     for (int j = 0; j < model.graph.num_nodes(); ++j) {
-      if (guide.node_branch[static_cast<std::size_t>(j)] != a) continue;
       const auto jj = static_cast<std::size_t>(j);
+      if (guide.node_branch[jj] != a || guide.node_along[jj] < m.from) continue;
       const Eigen::Vector3d g = model.graph.nodes.col(j);
-      state.set_rotation(j, R * state.rotation(j));
-      state.t[jj] = R * (g + state.t[jj] - root) + root - g;
+      into->set_rotation(j, m.R * into->rotation(j));
+      into->t[jj] = m.R * (g + into->t[jj] - m.pivot) + m.pivot - g;
+      travel += (into->t[jj] - before[jj]).norm();
+      ++count;
     }
-    if (swung != nullptr) ++*swung;
+    return count > 0 ? travel / count : 0.0;
+  };
+  // Two tracks when both are asked for: about the pivots (state) and about the roots alone.
+  // They share each limb's move about its root while no limb has moved about a pivot beyond.
+  const bool both = about_roots != nullptr && pivots > 1;
+  DeformationState roots_state;
+  if (both) roots_state = start;
+  bool apart = false;
+  int moved = 0;
+  for (const int a : order) {
+    if (!has_nodes[static_cast<std::size_t>(a)]) continue;  // nothing it could move
+    const Eigen::Matrix3Xd posed = DeformPoints(model.graph, sampled.weights, sampled.rest, state);
+    // The best move over the pivots, the one lowering the two-way distance most. Each
+    // pivot's gain is nearly the same sum's change (target samples the moved part cannot
+    // reach count alike either way; only samples inside the pivot that nodes beyond it also
+    // carry move unscored).
+    LimbMove best = move_from(state, posed, a, 0.0);
+    if (both) {
+      const LimbMove at_root =
+          apart ? move_from(roots_state,
+                            DeformPoints(model.graph, sampled.weights, sampled.rest, roots_state),
+                            a, 0.0)
+                : best;
+      if (at_root.from >= 0) {
+        apply(at_root, a, &roots_state);
+        ++about_roots->swung;
+      }
+    }
+    for (int p = 1; p < pivots; ++p) {
+      LimbMove m = move_from(state, posed, a, static_cast<double>(p) / (pivots + 1));
+      if (m.from >= 0 && m.gain > best.gain) best = std::move(m);
+    }
+    if (best.from < 0) continue;
+    const double travel = apply(best, a, &state);
+    ++moved;
+    if (best.from > 0) {
+      apart = true;
+      // A part moved less than the cap is a nudge the fit itself can make, not a reason to fit
+      // again from the swing about the pivots.
+      if (beyond_root != nullptr && travel >= cap) ++*beyond_root;
+    }
+  }
+  if (swung != nullptr) *swung = moved;
+  if (both) {
+    about_roots->state = std::move(roots_state);
+  } else if (about_roots != nullptr) {
+    *about_roots = RootSwing{state, moved};  // about the roots alone already
   }
   return state;
 }

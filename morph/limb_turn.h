@@ -39,6 +39,12 @@ DeformationState TurnLimbs(const TemplateModel& model, const BranchGuide& guide,
                            const Similarity& placement, const ArticulationOptions& options,
                            int* turned = nullptr, const DeformationState* current = nullptr);
 
+/// The swing about the limbs' roots alone, which SwingLimbs gives beside its own.
+struct RootSwing {
+  DeformationState state;
+  int swung = 0;  ///< limbs moved
+};
+
 /// Node transforms from @p start with each template limb swung as a whole about its posed
 /// root to the direction in which it best explains the target: the limb's axis (from its root
 /// to the centroid of its samples) is laid on each of options.limb_swing_directions
@@ -50,21 +56,29 @@ DeformationState TurnLimbs(const TemplateModel& model, const BranchGuide& guide,
 /// Each limb is tried in two shapes: as @p start poses it, and in its rest shape, turned as
 /// the graph node that weighs most at its root is (the nearest rotation of that node's
 /// transform) and hung from the posed root, since a fit may have folded a limb along a
-/// neighbour it lay on; the rest shape is also scored where it points, unswung. A limb moves
-/// only when one of these beats its own place and shape by more than rounding. Limbs go
-/// longest first, each against the others as already moved. Unlike TurnLimbs it reads no
-/// skeleton of the target: only the template's limbs (BranchGuide::vertex_branch,
-/// node_branch) and their roots.
+/// neighbour it lay on; the rest shape is also scored where it points, unswung. With
+/// options.limb_swing_pivots above 1, the same is tried about points out along the limb's
+/// branch (BranchGuide::vertex_along, node_along at least the pivot's fraction move), and the
+/// pivot whose best move lowers that two-way distance most is kept. A limb moves only when
+/// a move beats its own place and shape by more than rounding. Limbs go longest first, each
+/// against the others as already moved. Unlike TurnLimbs it reads no skeleton of the target:
+/// only the template's limbs (BranchGuide::vertex_branch, node_branch) and their roots.
 /// @param[in] target 3 by N points in the target's frame, indexed by @p target_index.
 /// @param[in] placement the template's normalised frame -> the target's.
 /// @param[out] swung when given, the number of limbs moved (swung, or unfolded in place).
 /// @param pool when given, the directions are scored on its threads (the same result on any
 ///   number of threads).
+/// @param[out] beyond_root when given, how many of the limbs moved about a pivot beyond
+///   their roots by options.limb_swing_cap or more (the mean over the graph nodes moved).
+/// @param[out] about_roots when given, the swing as with options.limb_swing_pivots = 1,
+///   made beside this one: the two share each limb's move about its root until a limb moves
+///   about a pivot beyond.
 /// @pre the guide was made for @p model (MakeBranchGuide) and `placement.Usable()`.
 DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide,
                             const Eigen::Matrix3Xd& target, const PointIndex& target_index,
                             const Similarity& placement, const DeformationState& start,
                             const ArticulationOptions& options, int* swung = nullptr,
-                            WorkerPool* pool = nullptr);
+                            WorkerPool* pool = nullptr, int* beyond_root = nullptr,
+                            RootSwing* about_roots = nullptr);
 
 }  // namespace vb::morph
