@@ -58,8 +58,9 @@ struct RootSwing {
 /// transform) and hung from the posed root, since a fit may have folded a limb along a
 /// neighbour it lay on; the rest shape is also scored where it points, unswung. With
 /// options.limb_swing_pivots above 1, the same is tried about points out along the limb's
-/// branch (BranchGuide::vertex_along, node_along at least the pivot's fraction move), and the
-/// pivot whose best move lowers that two-way distance most is kept. A limb moves only when
+/// branch, moving only the samples and graph nodes at least that far out
+/// (BranchGuide::vertex_along, node_along), and the pivot whose best move lowers that two-way
+/// distance most is kept. A limb moves only when
 /// a move beats its own place and shape by more than rounding. Limbs go longest first, each
 /// against the others as already moved. Unlike TurnLimbs it reads no skeleton of the target:
 /// only the template's limbs (BranchGuide::vertex_branch, node_branch) and their roots.
