@@ -468,13 +468,8 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
                             &moved[0], &first_state);
       starts[2] = SwingLimbs(model, guide, target, target_index, to_target, first_state,
                              options.articulation, &moved[2], pool, &beyond_roots, &about_roots);
-      if (options.articulation.limb_swing_pivots > 1) {
-        starts[1] = std::move(about_roots.state);
-        moved[1] = about_roots.swung;
-      } else {
-        starts[1] = std::move(starts[2]);
-        moved[1] = moved[2];
-      }
+      starts[1] = std::move(about_roots.state);
+      moved[1] = about_roots.swung;
       // No limb moved far about a pivot beyond its root: that start differs from the swing
       // about the roots by nudges the fit makes itself, if at all.
       if (beyond_roots == 0) moved[2] = 0;

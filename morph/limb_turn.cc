@@ -55,6 +55,11 @@ double MeanNearest(const Eigen::Matrix3Xd& from, const Eigen::Matrix3Xd& to) {
   return sum / static_cast<double>(from.cols());
 }
 
+// True when graph node @p j lies on limb @p a at least @p from of the way out.
+bool OnLimbFrom(const BranchGuide& guide, std::size_t j, int a, double from) {
+  return guide.node_branch[j] == a && guide.node_along[j] >= from;
+}
+
 // @p state with every graph node of limb @p a (BranchGuide::node_branch) at least @p from of
 // the way out (BranchGuide::node_along) turned by @p turn and moved so that each maps the
 // rest point @p root_rest onto @p root: that part of the limb in its rest shape, turned as a
@@ -66,9 +71,7 @@ DeformationState CarriedAtRest(const DeformationGraph& graph, const BranchGuide&
                                const DeformationState& state) {
   DeformationState out = state;
   for (int j = 0; j < graph.num_nodes(); ++j) {
-    if (guide.node_branch[static_cast<std::size_t>(j)] != a ||
-        guide.node_along[static_cast<std::size_t>(j)] < from)
-      continue;
+    if (!OnLimbFrom(guide, static_cast<std::size_t>(j), a, from)) continue;
     const Eigen::Vector3d g = graph.nodes.col(j);
     // p -> turn (p - root_rest) + root for every point the node carries.
     out.set_rotation(j, turn);
@@ -225,7 +228,7 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
     if (mine.size() < 3 || others.empty()) return none;
     bool carried = false;  // by a graph node the move turns
     for (std::size_t j = 0; j < guide.node_branch.size() && !carried; ++j)
-      carried = guide.node_branch[j] == a && guide.node_along[j] >= from;
+      carried = OnLimbFrom(guide, j, a, from);
     if (!carried) return none;
     const Eigen::Matrix3Xd limb = posed(Eigen::all, mine);
     const Eigen::Matrix3Xd trunk = posed(Eigen::all, others);
@@ -339,7 +342,7 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
     int count = 0;
     for (int j = 0; j < model.graph.num_nodes(); ++j) {
       const auto jj = static_cast<std::size_t>(j);
-      if (guide.node_branch[jj] != a || guide.node_along[jj] < m.from) continue;
+      if (!OnLimbFrom(guide, jj, a, m.from)) continue;
       const Eigen::Vector3d g = model.graph.nodes.col(j);
       into->set_rotation(j, m.R * into->rotation(j));
       into->t[jj] = m.R * (g + into->t[jj] - m.pivot) + m.pivot - g;

@@ -304,12 +304,7 @@ TEST_F(RaisedArmTest, SwingsAForearmAboutAPointOutAlongItsLimb) {
   // The swing about the roots made beside it is the one made alone, and both are the same on
   // two threads.
   const auto same = [](const DeformationState& x, const DeformationState& y) {
-    if (x.t.size() != y.t.size()) return false;
-    for (std::size_t j = 0; j < x.t.size(); ++j) {
-      const int n = static_cast<int>(j);
-      if (x.t[j] != y.t[j] || x.rotation(n) != y.rotation(n)) return false;
-    }
-    return true;
+    return x.R == y.R && x.t == y.t;
   };
   EXPECT_EQ(roots.swung, swung_about_root);
   EXPECT_TRUE(same(roots.state, about_root));
