@@ -164,6 +164,9 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   const double relative_noise = noise / options.noise_reference;
   const double noise_factor = 1.0 / (1.0 + relative_noise * relative_noise);
   result.state = coarse.state;
+  // The posture the coarse stage found, where it bent the graph sharply, is what E_reg holds.
+  const std::vector<Eigen::Vector3d> kept_bends =
+      KeptBends(model.graph, coarse.state, options.free_bend);
   std::vector<int> reverse_samples;
   if (options.reverse_samples > 0) {
     const int reverse_step = std::max(1, static_cast<int>(points.cols()) / options.reverse_samples);
@@ -274,7 +277,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     deformation.w_data *= noise_factor * static_cast<double>(model.graph.num_nodes()) /
                           static_cast<double>(constraints.size());
     info.deformation =
-        SolveEmbeddedDeformation(model.graph, constraints, deformation, &result.state);
+        SolveEmbeddedDeformation(model.graph, constraints, deformation, &result.state, kept_bends);
     result.rounds.push_back(info);
     if (!info.deformation.usable) {
       result.error = "surface embedded deformation failed: " + info.deformation.message;

@@ -17,6 +17,13 @@ constexpr int kMaxLinearIterations = 500;
 using Block = Eigen::Matrix<double, kB, kB>;
 using RowMajor3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
 
+// E_reg's residuals: one per node and neighbour.
+std::size_t DirectedEdges(const DeformationGraph& graph) {
+  std::size_t count = 0;
+  for (const std::vector<int>& around : graph.neighbours) count += around.size();
+  return count;
+}
+
 // Node j's rotation (row-major) and translation in a packed state or gradient vector.
 Eigen::Map<const RowMajor3> RotationOf(const Eigen::VectorXd& x, int j) {
   return Eigen::Map<const RowMajor3>(x.data() + kB * j);
@@ -138,18 +145,20 @@ struct RigidityTerm {
 class Problem {
  public:
   Problem(const DeformationGraph& graph, std::span<const PointConstraint> constraints,
-          const EmbeddedDeformationOptions& options)
+          const EmbeddedDeformationOptions& options, std::span<const Eigen::Vector3d> kept_bends)
       : graph_(graph),
         constraints_(constraints),
         options_(options),
+        kept_bends_(kept_bends),
         n_(graph.num_nodes()),
-        linear_((Demand(graph, constraints), n_), CoupledPairs(graph, constraints)) {
+        linear_((Demand(graph, constraints, kept_bends), n_), CoupledPairs(graph, constraints)) {
     AssembleLinear();
   }
 
   // The preconditions SolveEmbeddedDeformation states: every node index in range, and no
   // node twice in one term (a term's blocks would then be summed as if its nodes differed).
-  static void Demand(const DeformationGraph& graph, std::span<const PointConstraint> constraints) {
+  static void Demand(const DeformationGraph& graph, std::span<const PointConstraint> constraints,
+                     std::span<const Eigen::Vector3d> kept_bends) {
     const int n = graph.num_nodes();
     const auto valid = [n](int j) { return j >= 0 && j < n; };
     for (const PointConstraint& c : constraints) {
@@ -163,6 +172,7 @@ class Problem {
     for (int i = 0; i < n; ++i)
       for (int j : graph.neighbours[static_cast<std::size_t>(i)]) VB_DEMAND(valid(j) && j != i);
     for (const auto& [j, k] : graph.bridges) VB_DEMAND(valid(j) && valid(k) && j != k);
+    VB_DEMAND(kept_bends.empty() || kept_bends.size() == DirectedEdges(graph));
   }
 
   const BlockMatrix& linear() const { return linear_; }
@@ -200,14 +210,18 @@ class Problem {
         TranslationOf(*gradient, j) += f;
       }
     }
-    // E_reg, eq. (7).
+    // E_reg, eq. (7), each residual measured from its kept bend when there are any.
     const double wreg = std::sqrt(options_.w_reg);
+    std::size_t edge = 0;
     for (int i = 0; i < n_; ++i) {
       for (int j : graph_.neighbours[static_cast<std::size_t>(i)]) {
         const Eigen::Vector3d gi = graph_.nodes.col(i), gj = graph_.nodes.col(j);
         const Eigen::Vector3d d = gi - gj;
-        const Eigen::Vector3d r =
-            wreg * (RotationOf(x, j) * d + gj + TranslationOf(x, j) - gi - TranslationOf(x, i));
+        Eigen::Vector3d r =
+            RotationOf(x, j) * d + gj + TranslationOf(x, j) - gi - TranslationOf(x, i);
+        if (!kept_bends_.empty()) r -= kept_bends_[edge];
+        ++edge;
+        r *= wreg;
         cost += 0.5 * r.squaredNorm();
         if (gradient == nullptr) continue;
         RotationOf(*gradient, j).noalias() += (wreg * r) * d.transpose();
@@ -336,6 +350,7 @@ class Problem {
   const DeformationGraph& graph_;
   std::span<const PointConstraint> constraints_;
   const EmbeddedDeformationOptions& options_;
+  std::span<const Eigen::Vector3d> kept_bends_;
   int n_;
   BlockMatrix linear_;
 };
@@ -447,19 +462,42 @@ Eigen::VectorXd Pack(const DeformationState& state) {
 
 }  // namespace
 
+std::vector<Eigen::Vector3d> KeptBends(const DeformationGraph& graph, const DeformationState& pose,
+                                       double free_bend) {
+  VB_DEMAND(free_bend >= 0.0 && static_cast<int>(pose.R.size()) == graph.num_nodes() &&
+            static_cast<int>(pose.t.size()) == graph.num_nodes());
+  std::vector<Eigen::Vector3d> kept;
+  kept.reserve(DirectedEdges(graph));
+  for (int i = 0; i < graph.num_nodes(); ++i) {
+    for (int j : graph.neighbours[static_cast<std::size_t>(i)]) {
+      const Eigen::Vector3d gi = graph.nodes.col(i), gj = graph.nodes.col(j);
+      const Eigen::Vector3d bend = pose.rotation(j) * (gi - gj) + gj +
+                                   pose.t[static_cast<std::size_t>(j)] - gi -
+                                   pose.t[static_cast<std::size_t>(i)];
+      const double length = bend.norm();
+      const double free = free_bend * (gi - gj).norm();
+      kept.push_back(length > free ? Eigen::Vector3d((1.0 - free / length) * bend)
+                                   : Eigen::Vector3d::Zero());
+    }
+  }
+  return kept;
+}
+
 double EmbeddedDeformationEnergy(const DeformationGraph& graph,
                                  std::span<const PointConstraint> constraints,
                                  const EmbeddedDeformationOptions& options,
-                                 const DeformationState& state, Eigen::VectorXd* gradient) {
+                                 const DeformationState& state, Eigen::VectorXd* gradient,
+                                 std::span<const Eigen::Vector3d> kept_bends) {
   VB_DEMAND(static_cast<int>(state.R.size()) == graph.num_nodes() &&
             static_cast<int>(state.t.size()) == graph.num_nodes());
-  return Problem(graph, constraints, options).Cost(Pack(state), gradient);
+  return Problem(graph, constraints, options, kept_bends).Cost(Pack(state), gradient);
 }
 
 SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
                                       std::span<const PointConstraint> constraints,
                                       const EmbeddedDeformationOptions& options,
-                                      DeformationState* state) {
+                                      DeformationState* state,
+                                      std::span<const Eigen::Vector3d> kept_bends) {
   VB_DEMAND(static_cast<int>(state->R.size()) == graph.num_nodes() &&
             static_cast<int>(state->t.size()) == graph.num_nodes());
   const auto start = std::chrono::steady_clock::now();
@@ -472,7 +510,7 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
   if (options.deadline.Passed()) return finish("past the morph's deadline");
   const int n = graph.num_nodes();
   const Eigen::Index size = static_cast<Eigen::Index>(kB) * n;
-  Problem problem(graph, constraints, options);
+  Problem problem(graph, constraints, options, kept_bends);
 
   Eigen::VectorXd x = Pack(*state);
   Eigen::VectorXd gradient(size), next_gradient(size);
