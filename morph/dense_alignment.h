@@ -100,11 +100,10 @@ struct DenseOptions {
   /// w_rot and w_reg are multiplied by this each round: a stiff start that cannot fold, then
   /// freedom to follow the surface's own features.
   double stiffness_decay = 0.6;
-  /// E_reg measures the coarse pose's bends sharper than this (E_reg's residual over the
-  /// edge's length, about radians) from that pose, the rest from the template's rest shape
-  /// (KeptBends): a limb the posture fit turned at a joint is not pulled back where the data
-  /// weigh little (a noisy cloud), while the fit's small distortions still relax. A large
-  /// value keeps none.
+  /// E_reg measures each residual from the coarse pose's residual shortened by this times
+  /// the edge's rest length (KeptBends; residual over edge about the turn in radians): a limb
+  /// the posture fit turned at a joint is not pulled back where the data weigh little (a
+  /// noisy cloud), while the fit's small distortions still relax. A large value keeps none.
   double free_bend = 0.3;
   /// Eq. (13). w_data is per graph node: it is divided by the number of associations per
   /// node, so its balance with the regularisers does not depend on num_samples, and

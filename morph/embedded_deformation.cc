@@ -24,6 +24,26 @@ std::size_t DirectedEdges(const DeformationGraph& graph) {
   return count;
 }
 
+// E_reg's residual of node i and its neighbour j, unweighted: where node j's transform
+// (R_j, t_j) carries g_i, less where node i's own translation t_i does.
+template <typename Rotation, typename Translation>
+Eigen::Vector3d RegResidual(const DeformationGraph& graph, int i, int j, const Rotation& Rj,
+                            const Translation& tj, const Translation& ti) {
+  const Eigen::Vector3d gi = graph.nodes.col(i), gj = graph.nodes.col(j);
+  return Rj * (gi - gj) + gj + tj - gi - ti;
+}
+
+// The graph's own preconditions: one neighbour list per node, every neighbour and bridge end
+// a node other than the one it joins.
+void DemandGraph(const DeformationGraph& graph) {
+  const int n = graph.num_nodes();
+  const auto valid = [n](int j) { return j >= 0 && j < n; };
+  VB_DEMAND(graph.neighbours.size() == static_cast<std::size_t>(n));
+  for (int i = 0; i < n; ++i)
+    for (int j : graph.neighbours[static_cast<std::size_t>(i)]) VB_DEMAND(valid(j) && j != i);
+  for (const auto& [j, k] : graph.bridges) VB_DEMAND(valid(j) && valid(k) && j != k);
+}
+
 // Node j's rotation (row-major) and translation in a packed state or gradient vector.
 Eigen::Map<const RowMajor3> RotationOf(const Eigen::VectorXd& x, int j) {
   return Eigen::Map<const RowMajor3>(x.data() + kB * j);
@@ -168,10 +188,7 @@ class Problem {
         for (std::size_t b = 0; b < a; ++b) VB_DEMAND(c.nodes[a] != c.nodes[b]);
       }
     }
-    VB_DEMAND(graph.neighbours.size() == static_cast<std::size_t>(n));
-    for (int i = 0; i < n; ++i)
-      for (int j : graph.neighbours[static_cast<std::size_t>(i)]) VB_DEMAND(valid(j) && j != i);
-    for (const auto& [j, k] : graph.bridges) VB_DEMAND(valid(j) && valid(k) && j != k);
+    DemandGraph(graph);
     VB_DEMAND(kept_bends.empty() || kept_bends.size() == DirectedEdges(graph));
   }
 
@@ -215,10 +232,9 @@ class Problem {
     std::size_t edge = 0;
     for (int i = 0; i < n_; ++i) {
       for (int j : graph_.neighbours[static_cast<std::size_t>(i)]) {
-        const Eigen::Vector3d gi = graph_.nodes.col(i), gj = graph_.nodes.col(j);
-        const Eigen::Vector3d d = gi - gj;
+        const Eigen::Vector3d d = graph_.nodes.col(i) - graph_.nodes.col(j);
         Eigen::Vector3d r =
-            RotationOf(x, j) * d + gj + TranslationOf(x, j) - gi - TranslationOf(x, i);
+            RegResidual(graph_, i, j, RotationOf(x, j), TranslationOf(x, j), TranslationOf(x, i));
         if (!kept_bends_.empty()) r -= kept_bends_[edge];
         ++edge;
         r *= wreg;
@@ -466,16 +482,16 @@ std::vector<Eigen::Vector3d> KeptBends(const DeformationGraph& graph, const Defo
                                        double free_bend) {
   VB_DEMAND(free_bend >= 0.0 && static_cast<int>(pose.R.size()) == graph.num_nodes() &&
             static_cast<int>(pose.t.size()) == graph.num_nodes());
+  DemandGraph(graph);
   std::vector<Eigen::Vector3d> kept;
   kept.reserve(DirectedEdges(graph));
   for (int i = 0; i < graph.num_nodes(); ++i) {
     for (int j : graph.neighbours[static_cast<std::size_t>(i)]) {
-      const Eigen::Vector3d gi = graph.nodes.col(i), gj = graph.nodes.col(j);
-      const Eigen::Vector3d bend = pose.rotation(j) * (gi - gj) + gj +
-                                   pose.t[static_cast<std::size_t>(j)] - gi -
-                                   pose.t[static_cast<std::size_t>(i)];
+      const Eigen::Vector3d bend =
+          RegResidual(graph, i, j, pose.rotation(j), pose.t[static_cast<std::size_t>(j)],
+                      pose.t[static_cast<std::size_t>(i)]);
       const double length = bend.norm();
-      const double free = free_bend * (gi - gj).norm();
+      const double free = free_bend * (graph.nodes.col(i) - graph.nodes.col(j)).norm();
       kept.push_back(length > free ? Eigen::Vector3d((1.0 - free / length) * bend)
                                    : Eigen::Vector3d::Zero());
     }

@@ -97,29 +97,32 @@ struct SolveSummary {
 /// @pre every node index in @p constraints and @p graph lies in [0, num_nodes), no term names
 /// a node twice (a constraint's nodes are distinct; no node is its own neighbour; no bridge
 /// joins a node to itself), and each constraint has one weight per node.
-/// With @p kept_bends (KeptBends, one per E_reg residual), E_reg measures each residual from
-/// its kept bend instead of from zero; empty: from zero, the template's rest shape.
-/// @pre kept_bends is empty or has one entry per directed graph edge.
+/// With @p kept_bends (KeptBends), E_reg measures each residual from its kept bend instead of
+/// from zero; empty: from zero, the template's rest shape.
+/// @pre kept_bends is empty or has one entry per E_reg residual, in KeptBends' order.
 SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
                                       std::span<const PointConstraint> constraints,
                                       const EmbeddedDeformationOptions& options,
                                       DeformationState* state,
                                       std::span<const Eigen::Vector3d> kept_bends = {});
 
-/// The bends of @p pose that E_reg (eq. 7) is to keep: per directed graph edge (node i and
-/// each of its neighbours j, in the order of DeformationGraph::neighbours), the edge's E_reg
-/// residual at @p pose, R_j (g_i - g_j) + g_j + t_j - (g_i + t_i), shortened by
-/// @p free_bend times the edge's rest length |g_i - g_j| (zero when it is shorter). The
-/// residual over the length is about the angle, in radians, by which the pose turned node i
-/// away from where node j carries it. So a later solve keeps where @p pose bent the graph
-/// sharply (a limb turned at a joint), and still pulls smaller bends back to the rest shape.
-/// @pre free_bend >= 0; @p pose has one transform per node.
+/// The bends of @p pose that E_reg (eq. 7) is to keep, in the graph's units (template sizes):
+/// per E_reg residual (node i = 0, 1, ..., then each neighbour j in
+/// DeformationGraph::neighbours[i]), the residual at @p pose, R_j (g_i - g_j) + g_j + t_j -
+/// (g_i + t_i), shortened by @p free_bend times the edge's rest length |g_i - g_j| (zero when
+/// it is shorter). For node i turned by theta about node j the residual over the length is
+/// 2 sin(theta / 2), about theta in radians. A later solve given these holds where @p pose
+/// bent the graph sharply (a limb turned at a joint) less free_bend times each edge, and
+/// pulls smaller bends back to the rest shape.
+/// @pre free_bend >= 0; @p pose has one transform per node; the graph's neighbours and
+/// bridges name nodes in range, none joined to itself.
 std::vector<Eigen::Vector3d> KeptBends(const DeformationGraph& graph, const DeformationState& pose,
                                        double free_bend);
 
 /// The energy SolveEmbeddedDeformation minimises, as half the sum of its squared residuals
 /// (each term's residuals scaled by the square root of its weight), at @p state; with
-/// @p gradient, its gradient: 12 entries per node, R_j row-major, then t_j.
+/// @p gradient, its gradient: 12 entries per node, R_j row-major, then t_j. @p kept_bends as
+/// for SolveEmbeddedDeformation.
 double EmbeddedDeformationEnergy(const DeformationGraph& graph,
                                  std::span<const PointConstraint> constraints,
                                  const EmbeddedDeformationOptions& options,

@@ -74,7 +74,7 @@ const std::array kKeys = {
     VB_PROFILE_KEY(dense.reverse_samples, kCount, 0, 100000, true, "target points associated back a round"),
     VB_PROFILE_KEY(dense.rounds, kRounds, 1, 50, true, "association, filtering and deformation rounds"),
     VB_PROFILE_KEY(dense.stiffness_decay, kFraction, 0.01, 1.0, false, "regularisers' multiplier each round"),
-    VB_PROFILE_KEY(dense.free_bend, "radians", 0.0, 100.0, false, "E_reg: coarse-pose bends sharper than this kept, smaller ones relaxed (large: none kept)"),
+    VB_PROFILE_KEY(dense.free_bend, "radians", 0.0, 100.0, false, "E_reg: the coarse pose's bends kept, each less this times its edge (large: none kept)"),
     VB_PROFILE_KEY(dense.normal_neighbours, kCount, 3, 500, false, "neighbours of a cloud's normals (one pass: reach at least theirs)"),
     VB_PROFILE_KEY(dense.max_normal_passes, kCount, 1, 64, false, "widening passes of a noisy cloud's normals"),
     VB_PROFILE_KEY(dense.min_normal_neighbours, kCount, 3, 500, false, "one pass: a normal's first fit, and its shortest reach (in points)"),
