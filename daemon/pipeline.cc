@@ -664,6 +664,11 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
           result.check.stretch, result.check.size);
       text += numbers;
       if (!result.check.concern.empty()) text += ": " + result.check.concern;
+      if (result.cleaning.stride > 1) {
+        std::snprintf(numbers, sizeof numbers, "; cloud read at one point in %d",
+                      result.cleaning.stride);
+        text += numbers;
+      }
       if (const morph::CleaningSummary& c = result.cleaning; c.strays + c.detached > 0) {
         std::snprintf(numbers, sizeof numbers,
                       "; clutter left out: %d stray points, %d points in %d detached pieces",

@@ -92,7 +92,7 @@ CoarseResult CleanAndAlignCoarse(const TemplateModel& model, const Eigen::Matrix
   // When nothing is taken out, the cleaning's kd-tree over the target serves the coarse stage
   // too (it refers to `target`, which the cleaned copy equals).
   std::unique_ptr<PointIndex> index;
-  *cleaned = CleanTarget(target, normals, clean, &index, pool);
+  *cleaned = CleanTarget(target, normals, clean, &index, pool, model.V.cols());
   return AlignCoarse(model, index != nullptr ? target : cleaned->points, coarse, pool, index.get(),
                      cleaned->normals.cols() > 0 ? &cleaned->normals : nullptr);
 }

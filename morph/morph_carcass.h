@@ -46,7 +46,8 @@ struct CarcassResult {
   double seconds = 0;
 };
 
-/// The morph's first steps, as MorphCarcass takes them: clutter out (CleanTarget), then
+/// The morph's first steps, as MorphCarcass takes them: a cloud far denser than @p model's
+/// vertices thinned and clutter out (CleanTarget), then
 /// AlignCoarse on the rest, with the cleaning's kd-tree when nothing went. A target with
 /// non-finite points or a normal count of its own is not cleaned, for the stages to name the
 /// fault. @p cleaned receives the cloud (and normals) the later stages are to use and what

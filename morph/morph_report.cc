@@ -32,8 +32,17 @@ nlohmann::json Point(const Eigen::Vector3d& p) { return {p.x(), p.y(), p.z()}; }
 }  // namespace
 
 void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& model,
-                      const CoarseResult& r, const DenseResult* dense) {
+                      const CoarseResult& r, const DenseResult* dense,
+                      const CleaningSummary* cleaning) {
   nlohmann::json j;
+  if (cleaning != nullptr) {
+    j["cleaning"] = {{"target_stride", cleaning->stride},
+                     {"median_spacing", cleaning->spacing},
+                     {"strays", cleaning->strays},
+                     {"detached", cleaning->detached},
+                     {"pieces_dropped", cleaning->pieces_dropped},
+                     {"seconds", cleaning->seconds}};
+  }
   j["ok"] = r.ok;
   j["error"] = r.error;
   j["timings_s"] = {{"template_model", model.seconds},

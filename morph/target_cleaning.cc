@@ -14,13 +14,29 @@ namespace vb::morph {
 
 CleanedTarget CleanTarget(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
                           const CleaningOptions& options, std::unique_ptr<PointIndex>* index_out,
-                          WorkerPool* pool) {
+                          WorkerPool* pool, Eigen::Index template_vertices) {
   const auto start = std::chrono::steady_clock::now();
   if (index_out != nullptr) index_out->reset();
   VB_DEMAND(normals.cols() == 0 || normals.cols() == points.cols());
   VB_DEMAND(options.neighbours >= 0 && options.stray_spacings > 0 && options.link_spacings > 0 &&
-            options.small_piece >= 0 && options.far_piece >= 0);
+            options.small_piece >= 0 && options.far_piece >= 0 &&
+            options.max_points_per_vertex >= 0 && template_vertices >= 0);
   const Eigen::Index n = points.cols();
+  // Far denser than the template: every stride-th point, then cleaned as a cloud of its own.
+  const double cap = options.max_points_per_vertex * static_cast<double>(template_vertices);
+  if (cap >= 1.0 && static_cast<double>(n) > cap && points.allFinite()) {
+    const auto stride = static_cast<Eigen::Index>(std::ceil(static_cast<double>(n) / cap));
+    const auto every = Eigen::seq(0, Eigen::last, stride);
+    CleanedTarget out =
+        CleanTarget(points(Eigen::all, every),
+                    normals.cols() != 0 ? Eigen::Matrix3Xd(normals(Eigen::all, every)) : normals,
+                    options, nullptr, pool, 0);
+    for (int& column : out.kept) column *= static_cast<int>(stride);
+    out.summary.stride = static_cast<int>(stride);
+    out.summary.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return out;
+  }
   const int k = options.neighbours;
   CleanedTarget out;
   const auto keep_all = [&] {

@@ -7,7 +7,8 @@
 #include "morph/point_index.h"
 #include "morph/worker_pool.h"
 
-// Stray points and detached clutter taken out of a target cloud before the morph.
+// A target cloud made ready for the morph: read at every n-th point when it is far denser than
+// the template, then stray points and detached clutter taken out.
 namespace vb::morph {
 
 /// What counts as clutter. Lengths are multiples of the cloud's own point spacing (the median
@@ -31,6 +32,12 @@ struct CleaningOptions {
   double link_spacings = 4.0;
   double small_piece = 0.1;
   double far_piece = 0.05;
+  /// A cloud of more points than this many per template vertex is read at every n-th point,
+  /// the smallest n that brings it within the cap; 0: never. The morph resolves no finer
+  /// than the template's vertices, and its time grows faster than the points (a 500,000-point
+  /// scan took 17 s, docs/decisions.md). Counted against the whole template, so a cloud that
+  /// shows part of the body is thinned as if it showed all of it.
+  double max_points_per_vertex = 8.0;
 };
 
 /// What the cleaning took out.
@@ -38,7 +45,8 @@ struct CleaningSummary {
   int strays = 0;          ///< points dropped as strays
   int detached = 0;        ///< points dropped in small far pieces of 2 or more
   int pieces_dropped = 0;  ///< how many such pieces
-  double spacing = 0.0;    ///< the cloud's median spacing, its units (0: not read)
+  double spacing = 0.0;    ///< the cloud's median spacing as read, its units (0: not read)
+  int stride = 1;          ///< every stride-th point of the input was read (max_points_per_vertex)
   double seconds = 0.0;
 };
 
@@ -50,14 +58,18 @@ struct CleanedTarget {
   CleaningSummary summary;
 };
 
-/// Takes stray points and small detached pieces out of @p points (3 by N, any units).
-/// @p normals is 3 by N or empty. Clouds of fewer than 2 (neighbours + 1) points, with a
-/// non-finite coordinate, or with cleaning off, come back whole.
+/// Takes stray points and small detached pieces out of @p points (3 by N, any units), after
+/// reading every n-th of them when there are more than options.max_points_per_vertex times
+/// @p template_vertices. @p normals is 3 by N or empty. Clouds of fewer than
+/// 2 (neighbours + 1) points (after the thinning), or with cleaning off, are not cleaned;
+/// clouds with a non-finite coordinate come back whole, for the stages to name the fault.
 /// @param[out] index when given and nothing was taken out, receives the kd-tree the cleaning
 ///   built over @p points (which must then outlive it), for the stages to reuse; else null.
 /// @param pool when given, the neighbour search shares its threads (same result).
+/// @param template_vertices the vertices of the template the cloud is for; 0: no thinning.
 CleanedTarget CleanTarget(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
                           const CleaningOptions& options = {},
-                          std::unique_ptr<PointIndex>* index = nullptr, WorkerPool* pool = nullptr);
+                          std::unique_ptr<PointIndex>* index = nullptr, WorkerPool* pool = nullptr,
+                          Eigen::Index template_vertices = 0);
 
 }  // namespace vb::morph

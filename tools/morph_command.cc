@@ -213,7 +213,8 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   const morph::DenseResult& dense = result.dense;
   const bool full = options.stage == "full" && coarse.ok;
   if (!options.report_path.empty())
-    morph::WriteMorphReport(options.report_path, model, coarse, full ? &dense : nullptr);
+    morph::WriteMorphReport(options.report_path, model, coarse, full ? &dense : nullptr,
+                            &result.cleaning);
   const std::string& error = !coarse.ok ? coarse.error : (full && !dense.ok ? dense.error : "");
   if (!error.empty()) {
     std::fprintf(stderr, "vbutcher: morph: %s: %s\n", options.target_path.string().c_str(),
@@ -233,6 +234,14 @@ int RunMorphCommand(const MorphCommandOptions& options) {
       coarse.total_seconds);
   {
     const morph::CleaningSummary& cleaning = result.cleaning;
+    // A cloud far denser than the template is read at every n-th point (max_points_per_vertex).
+    if (cleaning.stride > 1)
+      std::printf(
+          "morph: the cloud is denser than the template needs: one point in %d read, %ld of "
+          "%ld\n",
+          cleaning.stride,
+          static_cast<long>((target.points.cols() + cleaning.stride - 1) / cleaning.stride),
+          static_cast<long>(target.points.cols()));
     std::printf(
         "morph: clutter left out: %d stray points, %d points in %d detached pieces (median "
         "spacing %.1f mm, %.3f s)\n",
@@ -241,11 +250,11 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   }
   if (full) {
     // A cloud denser than its noise is used at every n-th point (DenseOptions::thin_to_noise).
-    const std::string used = dense.stride == 1
-                                 ? "all points used"
-                                 : "every " + std::to_string(dense.stride) + "th point used, " +
-                                       std::to_string(dense.target.cols()) + " of " +
-                                       std::to_string(target.points.cols());
+    const std::string used = dense.stride == 1 ? "all points used"
+                                               : "one in " + std::to_string(dense.stride) +
+                                                     " of the points read used, " +
+                                                     std::to_string(dense.target.cols()) + " of " +
+                                                     std::to_string(target.points.cols());
     std::printf(
         "morph: dense: noise %.1f mm (%.3g of the size; %s; %.0f points per m2), normals %.3f s "
         "(%d widened%s), %zu rounds, total %.3f s\n",

@@ -149,5 +149,34 @@ TEST(CleanTargetTest, TheSameOnOneThreadAsOnTwoAndOffWhenAsked) {
   EXPECT_EQ(CleanTarget(cloud, cloud, off).points.cols(), cloud.cols());
 }
 
+// A cloud of more than max_points_per_vertex points per template vertex is read at every n-th
+// point, the smallest n within the cap, and then cleaned as a cloud of its own.
+TEST(CleanTargetTest, ReadsACloudFarDenserThanTheTemplateAtEveryNthPoint) {
+  const Eigen::Matrix3Xd cloud = Join(Sphere(9000, 0.5, Eigen::Vector3d::Zero()),
+                                      Sphere(300, 0.05, Eigen::Vector3d(0, 0, 0.8)));
+  std::unique_ptr<PointIndex> index;
+  const CleanedTarget c = CleanTarget(cloud, cloud, {}, &index, nullptr, 500);
+  // 9,300 points against 8 x 500: every 3rd.
+  EXPECT_EQ(c.summary.stride, 3);
+  EXPECT_EQ(c.summary.detached, 100);  // the small far piece, as read
+  ASSERT_EQ(c.points.cols(), 3000);
+  ASSERT_EQ(c.kept.size(), 3000u);
+  for (std::size_t k = 0; k < c.kept.size(); ++k) ASSERT_EQ(c.kept[k], 3 * static_cast<int>(k));
+  EXPECT_EQ(c.points, cloud(Eigen::all, c.kept));
+  EXPECT_EQ(c.normals, c.points);  // each normal stays with its point
+  EXPECT_EQ(index, nullptr);       // the kd-tree was over the points read, not the cloud
+
+  // At the cap, without a template or with the cap off: every point.
+  const Eigen::Matrix3Xd at_cap = Sphere(4000, 0.5, Eigen::Vector3d::Zero());
+  const CleanedTarget whole = CleanTarget(at_cap, {}, {}, &index, nullptr, 500);
+  EXPECT_EQ(whole.summary.stride, 1);
+  EXPECT_EQ(whole.points.cols(), 4000);
+  EXPECT_NE(index, nullptr);
+  EXPECT_EQ(CleanTarget(cloud, {}, {}).summary.stride, 1);
+  CleaningOptions off;
+  off.max_points_per_vertex = 0;
+  EXPECT_EQ(CleanTarget(cloud, {}, off, nullptr, nullptr, 500).summary.stride, 1);
+}
+
 }  // namespace
 }  // namespace vb::morph
