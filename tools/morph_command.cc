@@ -250,7 +250,7 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   }
   if (full) {
     // A cloud denser than its noise is used at every n-th point (DenseOptions::thin_to_noise).
-    const std::string used = dense.stride == 1 ? "all points used"
+    const std::string used = dense.stride == 1 ? "every point read used"
                                                : "one in " + std::to_string(dense.stride) +
                                                      " of the points read used, " +
                                                      std::to_string(dense.target.cols()) + " of " +
