@@ -238,7 +238,12 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
   Eigen::Matrix3Xd rest_normals, target_sample_normals;
   if (facing) {
     rest_normals = model.mesh.N(Eigen::all, template_ids);
-    target_sample_normals = placement.R.transpose() * (*target_normals)(Eigen::all, target_ids);
+    // Column by column: a product over an indexed view copies the view's indices for every
+    // coefficient it evaluates.
+    target_sample_normals.resize(3, static_cast<Eigen::Index>(target_ids.size()));
+    for (std::size_t k = 0; k < target_ids.size(); ++k)
+      target_sample_normals.col(static_cast<Eigen::Index>(k)) =
+          placement.R.transpose() * target_normals->col(target_ids[k]);
   }
 
   Eigen::Matrix3Xd terminals(3, target_terminals.cols());  // template frame

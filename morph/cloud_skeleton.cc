@@ -1,11 +1,15 @@
 #include "morph/cloud_skeleton.h"
 
 #include <algorithm>
+// clang-format off
+// The compressed graph last: it declares a boost::detail::get that would hide, from the
+// templates of the headers before it, the get they use on plain arrays.
 #include <boost/graph/adjacency_list.hpp>
-#include <boost/graph/connected_components.hpp>
 #include <boost/graph/dijkstra_shortest_paths.hpp>
 #include <boost/graph/kruskal_min_spanning_tree.hpp>
 #include <boost/pending/disjoint_sets.hpp>
+#include <boost/graph/compressed_sparse_row_graph.hpp>
+// clang-format on
 #include <cmath>
 #include <map>
 #include <span>
@@ -18,12 +22,24 @@
 namespace vb::morph {
 namespace {
 
-// Edges kept in a vector (the last vecS), not a list: one allocation per edge is most of a
-// skeleton's cost in allocations, and the edges' order is the same.
+// The skeleton nodes' graph, for the spanning tree; edges kept in a vector (the last vecS).
 using Graph =
     boost::adjacency_list<boost::vecS, boost::vecS, boost::undirectedS, boost::no_property,
                           boost::property<boost::edge_weight_t, double>, boost::no_property,
                           boost::vecS>;
+
+// The points' graph for the geodesic distances: built once from its edge list, each
+// undirected edge as two directed ones.
+using Compressed =
+    boost::compressed_sparse_row_graph<boost::directedS, boost::no_property,
+                                       boost::property<boost::edge_weight_t, double>>;
+
+// An edge of the points' graph: its ends and length.
+struct GraphEdge {
+  int a = 0;
+  int b = 0;
+  double length = 0.0;
+};
 
 // The input columns each downsampled point averages: point i's are
 // columns[first[i], first[i + 1]).
@@ -117,16 +133,27 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
   std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
                    sorted.end());
   const double max_edge = 3.0 * sorted[sorted.size() / 2];
-  Graph graph(static_cast<std::size_t>(n));
-  for (std::size_t e = 0; e < edges.size(); ++e) {
-    if (lengths[e] <= max_edge)
-      boost::add_edge(static_cast<std::size_t>(edges[e][0]), static_cast<std::size_t>(edges[e][1]),
-                      lengths[e], graph);
-  }
+  // The graph's edges in the order they are found: the short neighbour links, then the
+  // bridges below. Kept as a list and made a compressed graph once complete: a graph that
+  // grows keeps a vector per point, and their growth was most of a skeleton's allocations.
+  std::vector<GraphEdge> graph_edges;
+  graph_edges.reserve(edges.size());
+  for (std::size_t e = 0; e < edges.size(); ++e)
+    if (lengths[e] <= max_edge) graph_edges.push_back({edges[e][0], edges[e][1], lengths[e]});
 
   // Bridge pieces separated by missing regions; drop tiny pieces (outliers).
   std::vector<int> piece(static_cast<std::size_t>(n));
-  const int num_pieces = boost::connected_components(graph, piece.data());
+  int num_pieces = 0;
+  {
+    boost::disjoint_sets_with_storage<> linked(static_cast<std::size_t>(n));
+    for (const GraphEdge& e : graph_edges) linked.union_set(e.a, e.b);
+    std::vector<int> piece_of_root(static_cast<std::size_t>(n), -1);
+    for (int i = 0; i < n; ++i) {
+      int& p = piece_of_root[static_cast<std::size_t>(linked.find_set(i))];
+      if (p < 0) p = num_pieces++;
+      piece[static_cast<std::size_t>(i)] = p;
+    }
+  }
   std::vector<int> piece_size(static_cast<std::size_t>(num_pieces), 0);
   for (int p : piece) ++piece_size[static_cast<std::size_t>(p)];
   std::vector<bool> keep(static_cast<std::size_t>(n));
@@ -173,14 +200,26 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
       }
     }
     if (pair[0] >= 0) {
-      boost::add_edge(static_cast<std::size_t>(pair[0]), static_cast<std::size_t>(pair[1]),
-                      std::sqrt(best), graph);
+      graph_edges.push_back({pair[0], pair[1], std::sqrt(best)});
       joined.union_set(piece[static_cast<std::size_t>(pair[0])], group);
       merged = true;
     }
   }
 
-  // Geodesic distance from an extremity.
+  // Geodesic distance from an extremity, over both directions of every edge; each point's
+  // edges in the order they were found.
+  std::vector<std::pair<int, int>> directed;
+  std::vector<double> directed_length;
+  directed.reserve(2 * graph_edges.size());
+  directed_length.reserve(2 * graph_edges.size());
+  for (const GraphEdge& e : graph_edges) {
+    directed.emplace_back(e.a, e.b);
+    directed.emplace_back(e.b, e.a);
+    directed_length.push_back(e.length);
+    directed_length.push_back(e.length);
+  }
+  const Compressed graph(boost::edges_are_unsorted_multi_pass, directed.begin(), directed.end(),
+                         directed_length.begin(), static_cast<std::size_t>(n));
   std::vector<double> distance(static_cast<std::size_t>(n));
   auto geodesic_from = [&](int source) {
     boost::dijkstra_shortest_paths(graph, static_cast<std::size_t>(source),
@@ -209,9 +248,7 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
   }
   boost::disjoint_sets_with_storage<> pieces(static_cast<std::size_t>(n));
   auto piece_of = [&](int i) { return static_cast<int>(pieces.find_set(i)); };
-  for (const auto e : boost::make_iterator_range(boost::edges(graph))) {
-    const int a = static_cast<int>(boost::source(e, graph)),
-              b = static_cast<int>(boost::target(e, graph));
+  for (const auto& [a, b, unused] : graph_edges) {
     if (band_of[static_cast<std::size_t>(a)] >= 0 &&
         band_of[static_cast<std::size_t>(a)] == band_of[static_cast<std::size_t>(b)]) {
       pieces.union_set(a, b);
@@ -244,9 +281,7 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
                        sizes.end());
       const double small = options.min_band_piece * sizes[sizes.size() / 2];
       std::unordered_map<int, std::unordered_map<int, int>> touching;
-      for (const auto e : boost::make_iterator_range(boost::edges(graph))) {
-        const int a = static_cast<int>(boost::source(e, graph)),
-                  b = static_cast<int>(boost::target(e, graph));
+      for (const auto& [a, b, unused] : graph_edges) {
         if (band_of[static_cast<std::size_t>(a)] < 0 || band_of[static_cast<std::size_t>(b)] < 0)
           continue;
         const int ra = piece_of(a), rb = piece_of(b);
@@ -298,9 +333,7 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
 
   // Join pieces that touch across neighbouring bands, then keep a minimum spanning tree.
   std::map<std::pair<int, int>, bool> links;
-  for (const auto e : boost::make_iterator_range(boost::edges(graph))) {
-    const int a = static_cast<int>(boost::source(e, graph)),
-              b = static_cast<int>(boost::target(e, graph));
+  for (const auto& [a, b, unused] : graph_edges) {
     const int na = node_of[static_cast<std::size_t>(a)], nb = node_of[static_cast<std::size_t>(b)];
     if (na < 0 || nb < 0 || na == nb) continue;
     links[{std::min(na, nb), std::max(na, nb)}] = true;

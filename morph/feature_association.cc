@@ -67,27 +67,45 @@ struct Search {
     return hi <= options->max_relative_stretch * lo || hi == 0.0;
   }
 
+  // The pairs' points, a's side and b's, into @p on_a and @p on_b (3 by n); the similarity
+  // from the `from` side onto the other into @p fit; returns its squared residual.
+  template <class Points>
+  double FitPairs(Eigen::Index n, Points* on_a, Points* on_b, Similarity* fit) const {
+    on_a->resize(3, n);
+    on_b->resize(3, n);
+    for (std::size_t i = 0, k = 0; i < a_slots.size(); ++i) {
+      if (assignment[i] < 0) continue;
+      on_a->col(static_cast<Eigen::Index>(k)) = a.col(a_slots[i]);
+      on_b->col(static_cast<Eigen::Index>(k)) = b.col(assignment[i]);
+      ++k;
+    }
+    const Points& src = a_is_from ? *on_a : *on_b;
+    const Points& dst = a_is_from ? *on_b : *on_a;
+    const Eigen::Matrix4d T = Eigen::umeyama(src, dst, true);
+    const Eigen::Matrix3d sR = T.topLeftCorner<3, 3>();
+    *fit = Similarity::FromUmeyama(T);
+    return ((sR * src).colwise() + T.topRightCorner<3, 1>() - dst).squaredNorm();
+  }
+
   void Evaluate() {
     Eigen::Index n = 0;
     for (int j : assignment) n += j >= 0 ? 1 : 0;
     if (n < 3) return;
-    const auto count = static_cast<std::size_t>(n);
-    if (paired.size() <= count) paired.resize(count + 1);
-    auto& [on_a, on_b] = paired[count];
-    on_a.resize(3, n);  // allocates only the first time for this count
-    on_b.resize(3, n);
-    for (std::size_t i = 0, k = 0; i < a_slots.size(); ++i) {
-      if (assignment[i] < 0) continue;
-      on_a.col(static_cast<Eigen::Index>(k)) = a.col(a_slots[i]);
-      on_b.col(static_cast<Eigen::Index>(k)) = b.col(assignment[i]);
-      ++k;
+    // Up to kInlinePairs pairs, the points and every temporary of the fit live on the stack:
+    // this runs thousands of times a search.
+    constexpr int kInlinePairs = 32;
+    using InlinePoints = Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::ColMajor, 3, kInlinePairs>;
+    Similarity fit;
+    double cost = 0.0;
+    if (n <= kInlinePairs) {
+      InlinePoints on_a, on_b;
+      cost = FitPairs(n, &on_a, &on_b, &fit);
+    } else {
+      const auto count = static_cast<std::size_t>(n);
+      if (paired.size() <= count) paired.resize(count + 1);
+      auto& [on_a, on_b] = paired[count];  // allocates only the first time for this count
+      cost = FitPairs(n, &on_a, &on_b, &fit);
     }
-    const Eigen::Matrix3Xd& src = a_is_from ? on_a : on_b;
-    const Eigen::Matrix3Xd& dst = a_is_from ? on_b : on_a;
-    const Eigen::Matrix4d T = Eigen::umeyama(src, dst, true);
-    const Eigen::Matrix3d sR = T.topLeftCorner<3, 3>();
-    double cost = ((sR * src).colwise() + T.topRightCorner<3, 1>() - dst).squaredNorm();
-    const Similarity fit = Similarity::FromUmeyama(T);
     ++candidates;
     if (!options->AcceptsOrientation(fit.R)) return;
     // Rank by residual per degree of freedom left after the 7-parameter similarity (fewer

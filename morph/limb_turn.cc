@@ -211,6 +211,9 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
   for (const int a : guide.node_branch)
     if (a >= 0) has_nodes[static_cast<std::size_t>(a)] = true;
   std::vector<double> scores(directions.size());
+  // Each direction's swung limb, grown to the largest limb scored: the scores below write
+  // into them instead of allocating a limb each.
+  std::vector<Eigen::Matrix3Xd> swing_buffers(directions.size());
   const int pivots = std::max(1, options.limb_swing_pivots);
   // The best move of limb @p a's part from @p fraction of its branch out (rounded to the
   // branch's samples), from @p from_state (@p posed: the samples as it poses them); none
@@ -256,9 +259,14 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
         elsewhere.push_back(d);
       }
     }
-    // Two-way capped distance of @p shape, swung by R about the root.
-    const auto score = [&](const Eigen::Matrix3Xd& shape, const Eigen::Matrix3d& R) {
-      const Eigen::Matrix3Xd swung_limb = (R * (shape.colwise() - root)).colwise() + root;
+    // Two-way capped distance of @p shape (@p centred: less the root), swung by R about the
+    // root into @p buffer.
+    const auto score = [&](const Eigen::Matrix3Xd& centred, const Eigen::Matrix3d& R,
+                           Eigen::Matrix3Xd* buffer) {
+      if (buffer->cols() < centred.cols()) buffer->resize(3, centred.cols());
+      auto swung_limb = buffer->leftCols(centred.cols());
+      swung_limb.noalias() = R * centred;
+      swung_limb.colwise() += root;
       double sum = 0.0;
       for (Eigen::Index i = 0; i < swung_limb.cols(); ++i) {
         const Eigen::Vector3d there = placement(swung_limb.col(i));
@@ -279,8 +287,10 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
         return Eigen::Matrix3d(
             Eigen::Quaterniond::FromTwoVectors(shape_axis, directions[k]).toRotationMatrix());
       };
+      const Eigen::Matrix3Xd centred = shape.colwise() - root;
       ForEach(pool, static_cast<int>(directions.size()), [&](int k) {
-        scores[static_cast<std::size_t>(k)] = score(shape, turn_to(static_cast<std::size_t>(k)));
+        const auto d = static_cast<std::size_t>(k);
+        scores[d] = score(centred, turn_to(d), &swing_buffers[d]);
       });
       const auto k =
           static_cast<std::size_t>(std::min_element(scores.begin(), scores.end()) - scores.begin());
@@ -306,7 +316,8 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
       if ((rest_limb.rowwise().mean() - root).norm() > 0) {
         auto [rest_R, rest_best] = best_swing(rest_limb);
         // Unfolded where it is, not swung: the lattice of directions may hold none as near.
-        const double unswung = score(rest_limb, Eigen::Matrix3d::Identity());
+        const double unswung =
+            score(rest_limb.colwise() - root, Eigen::Matrix3d::Identity(), &swing_buffers.front());
         if (unswung <= rest_best) {
           rest_R = Eigen::Matrix3d::Identity();
           rest_best = unswung;
@@ -321,7 +332,8 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
     // Beaten by more than rounding: the rest shape of a limb the fit left unbent scores its
     // own place up to the last digits, and is no swing. The cap, the most one distance adds,
     // keeps that margin for a limb that already lies on the target (a score near 0).
-    const double own = score(limb, Eigen::Matrix3d::Identity());
+    const double own =
+        score(limb.colwise() - root, Eigen::Matrix3d::Identity(), &swing_buffers.front());
     if (!(best < own - kRounding * (own + cap))) return none;
     LimbMove m;
     m.gain = own - best;
