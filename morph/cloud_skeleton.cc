@@ -2,8 +2,8 @@
 
 #include <algorithm>
 // clang-format off
-// The compressed graph last: it declares a boost::detail::get that would hide, from the
-// templates of the headers before it, the get they use on plain arrays.
+// The compressed graph last: it declares a boost::detail::get which, included before the
+// others, would hide from their templates the get they use on plain arrays.
 #include <boost/graph/adjacency_list.hpp>
 #include <boost/graph/dijkstra_shortest_paths.hpp>
 #include <boost/graph/kruskal_min_spanning_tree.hpp>

@@ -89,8 +89,8 @@ CoarseResult CleanAndAlignCoarse(const TemplateModel& model, const Eigen::Matrix
     cleaned->normals = normals;
     return AlignCoarse(model, target, coarse, pool);
   }
-  // When nothing is taken out, the cleaning's kd-tree over the target serves the coarse stage
-  // too (it refers to `target`, which the cleaned copy equals).
+  // When the target is read whole and nothing is taken out, the cleaning's kd-tree over it
+  // serves the coarse stage too (it refers to `target`, which the cleaned copy equals).
   std::unique_ptr<PointIndex> index;
   *cleaned = CleanTarget(target, normals, clean, &index, pool, model.V.cols());
   return AlignCoarse(model, index != nullptr ? target : cleaned->points, coarse, pool, index.get(),

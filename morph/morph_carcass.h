@@ -34,7 +34,8 @@ struct MorphOptions {
 struct CarcassResult {
   bool ok = false;
   std::string error;  ///< why not, when !ok
-  /// What was taken out of the target before the stages (they see the rest).
+  /// How the target was read (every n-th point of a cloud far denser than the template) and
+  /// what was taken out of it before the stages (they see the rest).
   CleaningSummary cleaning;
   CoarseResult coarse;
   DenseResult dense;
@@ -47,7 +48,7 @@ struct CarcassResult {
 };
 
 /// The morph's first steps, as MorphCarcass takes them: a cloud far denser than @p model's
-/// vertices thinned and clutter out (CleanTarget), then
+/// vertices thinned and the clutter taken out (CleanTarget), then
 /// AlignCoarse on the rest, with the cleaning's kd-tree when nothing went. A target with
 /// non-finite points or a normal count of its own is not cleaned, for the stages to name the
 /// fault. @p cleaned receives the cloud (and normals) the later stages are to use and what

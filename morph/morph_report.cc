@@ -36,7 +36,7 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
                       const CleaningSummary* cleaning) {
   nlohmann::json j;
   if (cleaning != nullptr) {
-    j["cleaning"] = {{"target_stride", cleaning->stride},
+    j["cleaning"] = {{"read_stride", cleaning->stride},
                      {"median_spacing", cleaning->spacing},
                      {"strays", cleaning->strays},
                      {"detached", cleaning->detached},

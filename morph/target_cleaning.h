@@ -32,11 +32,11 @@ struct CleaningOptions {
   double link_spacings = 4.0;
   double small_piece = 0.1;
   double far_piece = 0.05;
-  /// A cloud of more points than this many per template vertex is read at every n-th point,
-  /// the smallest n that brings it within the cap; 0: never. The morph resolves no finer
-  /// than the template's vertices, and its time grows faster than the points (a 500,000-point
-  /// scan took 17 s, docs/decisions.md). Counted against the whole template, so a cloud that
-  /// shows part of the body is thinned as if it showed all of it.
+  /// A cloud of more points than this many per template vertex is read at every n-th point
+  /// (in its column order), the smallest n that brings it within the cap; 0: never. The
+  /// surface morph resolves no finer than the template's vertices, and the morph's time grows
+  /// faster than the points. Counted against the whole template, so a cloud that shows part
+  /// of the body is thinned as if it showed all of it.
   double max_points_per_vertex = 8.0;
 };
 
@@ -63,8 +63,9 @@ struct CleanedTarget {
 /// @p template_vertices. @p normals is 3 by N or empty. Clouds of fewer than
 /// 2 (neighbours + 1) points (after the thinning), or with cleaning off, are not cleaned;
 /// clouds with a non-finite coordinate come back whole, for the stages to name the fault.
-/// @param[out] index when given and nothing was taken out, receives the kd-tree the cleaning
-///   built over @p points (which must then outlive it), for the stages to reuse; else null.
+/// @param[out] index when given, the cloud was not thinned and nothing was taken out, receives
+///   the kd-tree the cleaning built over @p points (which must then outlive it), for the
+///   stages to reuse; else null.
 /// @param pool when given, the neighbour search shares its threads (same result).
 /// @param template_vertices the vertices of the template the cloud is for; 0: no thinning.
 CleanedTarget CleanTarget(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,

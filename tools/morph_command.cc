@@ -249,12 +249,18 @@ int RunMorphCommand(const MorphCommandOptions& options) {
         cleaning.seconds);
   }
   if (full) {
-    // A cloud denser than its noise is used at every n-th point (DenseOptions::thin_to_noise).
-    const std::string used = dense.stride == 1 ? "every point read used"
-                                               : "one in " + std::to_string(dense.stride) +
-                                                     " of the points read used, " +
-                                                     std::to_string(dense.target.cols()) + " of " +
-                                                     std::to_string(target.points.cols());
+    // A cloud denser than its noise is used at every n-th point (DenseOptions::thin_to_noise)
+    // of those read and kept (the points the dense stage was given).
+    const Eigen::Index stride = result.cleaning.stride;
+    const Eigen::Index given = (target.points.cols() + stride - 1) / stride -
+                               result.cleaning.strays - result.cleaning.detached;
+    const std::string used =
+        dense.stride == 1
+            ? "every point read used"
+            : "one in " + std::to_string(dense.stride) + " of the points read used, " +
+                  std::to_string(dense.target.cols()) + " of " + std::to_string(given) +
+                  (stride > 1 ? " (" + std::to_string(target.points.cols()) + " in the file)"
+                              : std::string());
     std::printf(
         "morph: dense: noise %.1f mm (%.3g of the size; %s; %.0f points per m2), normals %.3f s "
         "(%d widened%s), %zu rounds, total %.3f s\n",

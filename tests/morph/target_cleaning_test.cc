@@ -132,6 +132,10 @@ TEST(CleanTargetTest, LeavesNonFiniteCloudsWhole) {
   const CleanedTarget c = CleanTarget(cloud, {}, {}, &index);
   EXPECT_EQ(c.points.cols(), cloud.cols());
   EXPECT_EQ(index, nullptr);
+  // Nor thinned, however dense against the template.
+  const CleanedTarget dense = CleanTarget(cloud, {}, {}, &index, nullptr, 10);
+  EXPECT_EQ(dense.summary.stride, 1);
+  EXPECT_EQ(dense.points.cols(), cloud.cols());
 }
 
 TEST(CleanTargetTest, TheSameOnOneThreadAsOnTwoAndOffWhenAsked) {
@@ -163,6 +167,7 @@ TEST(CleanTargetTest, ReadsACloudFarDenserThanTheTemplateAtEveryNthPoint) {
   ASSERT_EQ(c.kept.size(), 3000u);
   for (std::size_t k = 0; k < c.kept.size(); ++k) ASSERT_EQ(c.kept[k], 3 * static_cast<int>(k));
   EXPECT_EQ(c.points, cloud(Eigen::all, c.kept));
+  ASSERT_EQ(c.normals.cols(), c.points.cols());
   EXPECT_EQ(c.normals, c.points);  // each normal stays with its point
   EXPECT_EQ(index, nullptr);       // the kd-tree was over the points read, not the cloud
 

@@ -182,6 +182,8 @@ TEST_F(TemplateArtifactTest, KeepsItsMorphProfileAndRefusesOneOutOfBounds) {
               HasSubstr("dense.normal_neighbours must not exceed dense.max_normal_neighbours"));
   EXPECT_THAT(error([](MorphOptions* o) { o->dense.min_normal_neighbours = 30; }),
               HasSubstr("dense.min_normal_neighbours must not exceed dense.normal_neighbours"));
+  EXPECT_THAT(error([](MorphOptions* o) { o->clean.max_points_per_vertex = 0.5; }),
+              HasSubstr("clean.max_points_per_vertex must be 0 (off) or at least 1"));
 }
 
 TEST(MorphProfileTest, EveryDefaultLiesInItsBoundsAndEveryKeyIsOneMember) {

@@ -183,9 +183,11 @@ v = np.frombuffer(body[: nv * vertex.itemsize], dtype=vertex)
 P = np.stack([v["x"], v["y"], v["z"]], 1).astype(float)
 F = np.frombuffer(body[nv * vertex.itemsize :][: nf * 13], dtype=np.dtype([("n", "u1"), ("i", "<i4", 3)]))["i"]
 area = np.linalg.norm(np.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]]), axis=1).sum() / 2
-if report["cleaning"]["target_stride"] < 2:  # 80,000 points, more than 8 per template vertex
-    sys.exit(f"FAIL: cleaning read one point in {report['cleaning']['target_stride']}, want 2 or more")
-want = 80000 / report["cleaning"]["target_stride"] / dense["target_stride"] / area
+if report["cleaning"]["read_stride"] < 2:  # 80,000 points, more than 8 per template vertex
+    sys.exit(f"FAIL: cleaning read one point in {report['cleaning']['read_stride']}, want 2 or more")
+if dense["target_stride"] < 2:  # and of those, the noise rule uses every n-th
+    sys.exit(f"FAIL: the dense stage used one point in {dense['target_stride']}, want 2 or more")
+want = 80000 / report["cleaning"]["read_stride"] / dense["target_stride"] / area
 # Measured: 0.92 of it.
 if abs(dense["density_per_m2"] / want - 1) > 0.12:
     sys.exit(f"FAIL: density {dense['density_per_m2']:.0f} per m2, want {want:.0f}")
