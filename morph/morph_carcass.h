@@ -48,8 +48,8 @@ struct CarcassResult {
 };
 
 /// The morph's first steps, as MorphCarcass takes them: a cloud far denser than @p model's
-/// vertices thinned and the clutter taken out (CleanTarget), then
-/// AlignCoarse on the rest, with the cleaning's kd-tree when nothing went. A target with
+/// vertices thinned and the clutter taken out (CleanTarget), then AlignCoarse on the rest,
+/// with the cleaning's kd-tree when the target was read whole and nothing went. A target with
 /// non-finite points or a normal count of its own is not cleaned, for the stages to name the
 /// fault. @p cleaned receives the cloud (and normals) the later stages are to use and what
 /// was left out. Throws what AlignCoarse throws.

@@ -37,7 +37,7 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
   nlohmann::json j;
   if (cleaning != nullptr) {
     j["cleaning"] = {{"read_stride", cleaning->stride},
-                     {"median_spacing", cleaning->spacing},
+                     {"median_spacing_m", cleaning->spacing},
                      {"strays", cleaning->strays},
                      {"detached", cleaning->detached},
                      {"pieces_dropped", cleaning->pieces_dropped},

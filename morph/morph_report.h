@@ -17,7 +17,8 @@ namespace vb::morph {
 /// Writes what a morph did as JSON: per-stage timings, feature nodes found on each side, the
 /// chosen association and its residual, and the solver summary; with @p dense (may be null)
 /// also each dense round (pairs found and kept, plane distance, solver); with @p cleaning
-/// (may be null) what the target's preparation read and left out.
+/// (may be null) how the target was read and what was left out (spacing in the target's
+/// units, reported as metres as the rest).
 /// @throws std::runtime_error when the file cannot be written.
 void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& model,
                       const CoarseResult& result, const DenseResult* dense = nullptr,
