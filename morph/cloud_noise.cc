@@ -16,6 +16,11 @@ namespace {
 // Fewest neighbours a noise sample is fitted to: twice the quadratic's six coefficients.
 constexpr Eigen::Index kMinNoiseNeighbours = 12;
 
+// The quadratic fit's system: at most kMaxNoiseNeighbours rows (dense.noise_neighbours'
+// bound), held inline so that neither the decomposition nor its solve allocates.
+using FitMatrix = Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::ColMajor, kMaxNoiseNeighbours, 6>;
+using FitVector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxNoiseNeighbours, 1>;
+
 // Centroid and principal axes of the points at @p indices; the axes are columns ordered by
 // ascending spread, so the first is the normal of their best-fit plane.
 struct PrincipalFrame {
@@ -58,11 +63,10 @@ NoiseReading ReadNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, 
   residuals.reserve(static_cast<std::size_t>(points.cols() / step + 1));
   reaches.reserve(residuals.capacity());
   densities.reserve(residuals.capacity());
-  Eigen::MatrixXd A(k, 6);
-  Eigen::VectorXd height(k);
-  // Reused from sample to sample: a fit to k neighbours, the usual count, allocates nothing.
-  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(k, 6);
-  Eigen::VectorXd c(6);
+  FitMatrix A(k, 6);
+  FitVector height(k);
+  Eigen::ColPivHouseholderQR<FitMatrix> qr(k, 6);
+  Eigen::Matrix<double, 6, 1> c;
   // Height above the neighbours' principal plane, as a quadratic in the in-plane coordinates.
   const auto monomials = [](const Eigen::Vector3d& q) {
     return (Eigen::Matrix<double, 1, 6>() << q.y() * q.y(), q.y() * q.z(), q.z() * q.z(), q.y(),
@@ -112,7 +116,8 @@ NoiseReading ReadNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, 
 
 NoiseEstimate EstimateNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, int samples,
                             int k, double radius) {
-  VB_DEMAND(samples >= 1 && k >= 10 && radius > 0 && index.size() == points.cols());
+  VB_DEMAND(samples >= 1 && k >= 10 && k <= kMaxNoiseNeighbours && radius > 0 &&
+            index.size() == points.cols());
   // Measured on a unit sphere with noise sigma along the normal, the reading against the
   // true sigma by the reach of the 60 nearest: 1.1 at 3-20 sigma, 0.87 at 2.2, 0.77 at 1.9
   // and 0.43 at 1.3 sigma. A reach under this many times the reading may be too short.

@@ -32,7 +32,10 @@ struct NoiseEstimate {
 /// the cloud is read again at every second point (then every 4th, ... 16th), which widens
 /// their reach by 1.4 each time, until the reading grows by less than 10 % or the radius
 /// stops the reach growing; the last reading is kept, with its stride.
-/// @pre samples >= 1, k >= 10, radius > 0, @p index over @p points.
+/// Most neighbours a noise reading may fit to (its fits are held inline).
+inline constexpr int kMaxNoiseNeighbours = 500;
+
+/// @pre samples >= 1, 10 <= k <= kMaxNoiseNeighbours, radius > 0, @p index over @p points.
 NoiseEstimate EstimateNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, int samples,
                             int k, double radius);
 

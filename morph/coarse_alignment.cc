@@ -47,27 +47,25 @@ Similarity RefineSimilarity(const Eigen::Matrix3Xd& template_samples,
                             const PointIndex& target_index, const Eigen::Matrix3Xd& target,
                             Similarity fit, int iterations) {
   const Eigen::Index n = template_samples.cols();
-  Eigen::Matrix3Xd placed(3, n), matched(3, n);
-  std::vector<double> d(static_cast<std::size_t>(n));
+  Eigen::Matrix3Xd placed(3, n), matched(3, n), src(3, n), dst(3, n);
+  std::vector<double> d(static_cast<std::size_t>(n)), sorted(d.size());
   for (int it = 0; it < iterations; ++it) {
     for (Eigen::Index i = 0; i < n; ++i) {
       placed.col(i) = fit(template_samples.col(i));
       matched.col(i) = target.col(target_index.Nearest(placed.col(i)));
       d[static_cast<std::size_t>(i)] = (matched.col(i) - placed.col(i)).norm();
     }
-    std::vector<double> sorted = d;
+    std::copy(d.begin(), d.end(), sorted.begin());
     const std::size_t cut = static_cast<std::size_t>(0.7 * (sorted.size() - 1));
     std::nth_element(sorted.begin(), sorted.begin() + cut, sorted.end());
     const double limit = sorted[cut];
-    std::vector<Eigen::Index> use;
-    for (Eigen::Index i = 0; i < n; ++i)
-      if (d[static_cast<std::size_t>(i)] <= limit) use.push_back(i);
-    Eigen::Matrix3Xd src(3, use.size()), dst(3, use.size());
-    for (std::size_t k = 0; k < use.size(); ++k) {
-      src.col(k) = template_samples.col(use[k]);
-      dst.col(k) = matched.col(use[k]);
+    Eigen::Index used = 0;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (d[static_cast<std::size_t>(i)] > limit) continue;
+      src.col(used) = template_samples.col(i);
+      dst.col(used++) = matched.col(i);
     }
-    fit = Similarity::FromUmeyama(Eigen::umeyama(src, dst, true));
+    fit = Similarity::FromUmeyama(Eigen::umeyama(src.leftCols(used), dst.leftCols(used), true));
   }
   return fit;
 }

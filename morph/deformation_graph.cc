@@ -152,9 +152,11 @@ DeformationGraph BuildDeformationGraph(const geometry::TriangleMesh& mesh,
 
 namespace {
 
-// Eq. (10) from candidate nodes sorted nearest first: the first `count` get weights.
-void FillWeights(const Eigen::Vector3d& p, std::vector<int> candidates,
+// Eq. (10) from candidate nodes: the `count` nearest get weights. @p candidate_list is
+// made unique and sorted nearest first, in place.
+void FillWeights(const Eigen::Vector3d& p, std::vector<int>* candidate_list,
                  const DeformationGraph& graph, int count, Eigen::Index column, NodeWeights* out) {
+  std::vector<int>& candidates = *candidate_list;
   std::sort(candidates.begin(), candidates.end());
   candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
   std::sort(candidates.begin(), candidates.end(), [&](int a, int b) {
@@ -199,7 +201,7 @@ NodeWeights VertexWeights(const geometry::TriangleMesh& mesh, const DeformationG
     std::vector<int> nodes;
     for (int u : mesh_graph.NearestTargets(v, k + 1, node_of_vertex))
       nodes.push_back(node_of_vertex[static_cast<std::size_t>(u)]);
-    FillWeights(mesh.V.col(v), nodes, graph, k, v, &w);
+    FillWeights(mesh.V.col(v), &nodes, graph, k, v, &w);
   }
   return w;
 }
@@ -211,8 +213,9 @@ NodeWeights PointWeights(const Eigen::Matrix3Xd& points,
   NodeWeights w;
   w.nodes = Eigen::MatrixXi::Constant(count, points.cols(), -1);
   w.weights = Eigen::MatrixXd::Zero(count, points.cols());
+  std::vector<int> candidates;
   for (Eigen::Index i = 0; i < points.cols(); ++i) {
-    std::vector<int> candidates;
+    candidates.clear();
     if (static_cast<std::size_t>(i) < support.size()) {
       for (int v : support[static_cast<std::size_t>(i)]) {
         for (Eigen::Index k = 0; k < vertex_weights.nodes.rows(); ++k) {
@@ -223,7 +226,7 @@ NodeWeights PointWeights(const Eigen::Matrix3Xd& points,
     if (candidates.empty()) {  // no support: the Euclidean nearest nodes
       for (int j = 0; j < graph.num_nodes(); ++j) candidates.push_back(j);
     }
-    FillWeights(points.col(i), candidates, graph, count, i, &w);
+    FillWeights(points.col(i), &candidates, graph, count, i, &w);
   }
   return w;
 }

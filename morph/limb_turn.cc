@@ -214,6 +214,9 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
   // Each direction's swung limb, grown to the largest limb scored: the scores below write
   // into them instead of allocating a limb each.
   std::vector<Eigen::Matrix3Xd> swing_buffers(directions.size());
+  // One move's sample lists, reused from move to move (cleared, not reallocated).
+  std::vector<Eigen::Index> mine, others, near;
+  std::vector<double> elsewhere;
   const int pivots = std::max(1, options.limb_swing_pivots);
   // The best move of limb @p a's part from @p fraction of its branch out (rounded to the
   // branch's samples), from @p from_state (@p posed: the samples as it poses them); none
@@ -223,7 +226,8 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
     const LimbMove none;
     const int column = BranchGuide::SampleAt(fraction);
     const double from = column / (BranchGuide::kSamples - 1.0);
-    std::vector<Eigen::Index> mine, others;
+    mine.clear();
+    others.clear();
     for (Eigen::Index k = 0; k < ns; ++k) {
       const auto v = static_cast<std::size_t>(ids[static_cast<std::size_t>(k)]);
       (guide.vertex_branch[v] == a && guide.vertex_along[v] >= from ? mine : others).push_back(k);
@@ -249,8 +253,8 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
     // The target's samples the limb can change: nearer its reach than to the rest of the
     // template and the cap. The others count the same in every direction.
     const PointIndex trunk_index(trunk);
-    std::vector<Eigen::Index> near;
-    std::vector<double> elsewhere;
+    near.clear();
+    elsewhere.clear();
     for (Eigen::Index y = 0; y < seen.cols(); ++y) {
       const double d =
           std::min(cap, (trunk.col(trunk_index.Nearest(seen.col(y))) - seen.col(y)).norm());
