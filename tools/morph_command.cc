@@ -232,15 +232,16 @@ int RunMorphCommand(const MorphCommandOptions& options) {
       coarse.deformation_seconds, coarse.deformation.iterations,
       coarse.deformation_kept ? "kept" : "dropped: the rigid placement fit the surface better",
       coarse.total_seconds);
+  // A cloud far denser than the template is read at every n-th point (max_points_per_vertex).
+  const Eigen::Index read_stride = result.cleaning.stride;
+  const Eigen::Index points_read = (target.points.cols() + read_stride - 1) / read_stride;
   {
     const morph::CleaningSummary& cleaning = result.cleaning;
-    // A cloud far denser than the template is read at every n-th point (max_points_per_vertex).
-    if (cleaning.stride > 1)
+    if (read_stride > 1)
       std::printf(
-          "morph: the cloud is denser than the template needs: one point in %d read, %ld of "
+          "morph: the cloud is denser than the template needs: one point in %ld read, %ld of "
           "%ld\n",
-          cleaning.stride,
-          static_cast<long>((target.points.cols() + cleaning.stride - 1) / cleaning.stride),
+          static_cast<long>(read_stride), static_cast<long>(points_read),
           static_cast<long>(target.points.cols()));
     std::printf(
         "morph: clutter left out: %d stray points, %d points in %d detached pieces (median "
@@ -251,16 +252,14 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   if (full) {
     // A cloud denser than its noise is used at every n-th point (DenseOptions::thin_to_noise)
     // of those read and kept (the points the dense stage was given).
-    const Eigen::Index stride = result.cleaning.stride;
-    const Eigen::Index given = (target.points.cols() + stride - 1) / stride -
-                               result.cleaning.strays - result.cleaning.detached;
+    const Eigen::Index given = points_read - result.cleaning.strays - result.cleaning.detached;
     const std::string used =
         dense.stride == 1
             ? "every point read used"
             : "one in " + std::to_string(dense.stride) + " of the points read used, " +
                   std::to_string(dense.target.cols()) + " of " + std::to_string(given) +
-                  (stride > 1 ? " (" + std::to_string(target.points.cols()) + " in the file)"
-                              : std::string());
+                  (read_stride > 1 ? " (" + std::to_string(target.points.cols()) + " in the file)"
+                                   : std::string());
     std::printf(
         "morph: dense: noise %.1f mm (%.3g of the size; %s; %.0f points per m2), normals %.3f s "
         "(%d widened%s), %zu rounds, total %.3f s\n",
