@@ -13,9 +13,6 @@ namespace vb::morph {
 
 namespace {
 
-// Fewest neighbours a noise sample is fitted to: twice the quadratic's six coefficients.
-constexpr Eigen::Index kMinNoiseNeighbours = 12;
-
 // The quadratic fit's system: at most kMaxNoiseNeighbours rows (dense.noise_neighbours'
 // bound), held inline so that neither the decomposition nor its solve allocates.
 using FitMatrix = Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::ColMajor, kMaxNoiseNeighbours, 6>;
@@ -116,7 +113,7 @@ NoiseReading ReadNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, 
 
 NoiseEstimate EstimateNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, int samples,
                             int k, double radius) {
-  VB_DEMAND(samples >= 1 && k >= 10 && k <= kMaxNoiseNeighbours && radius > 0 &&
+  VB_DEMAND(samples >= 1 && k >= kMinNoiseNeighbours && k <= kMaxNoiseNeighbours && radius > 0 &&
             index.size() == points.cols());
   // Measured on a unit sphere with noise sigma along the normal, the reading against the
   // true sigma by the reach of the 60 nearest: 1.1 at 3-20 sigma, 0.87 at 2.2, 0.77 at 1.9

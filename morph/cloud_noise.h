@@ -18,11 +18,16 @@ struct NoiseEstimate {
   double density = 0.0;
 };
 
+/// Fewest and most neighbours a noise reading fits to: at least twice the quadratic's six
+/// coefficients; at most what its fits hold inline.
+inline constexpr int kMinNoiseNeighbours = 12;
+inline constexpr int kMaxNoiseNeighbours = 500;
+
 /// The standard deviation of a cloud's noise along its surface, from the cloud alone. At
 /// every n-th point (about @p samples of them) a quadratic height field is fitted to the
 /// point's @p k nearest neighbours within @p radius, in their principal frame and without
 /// the point itself; the estimate is 1.4826 x the median of the points' offsets from their
-/// fits. Points with fewer than 12 neighbours in reach are skipped. The quadratic
+/// fits. Points with fewer than kMinNoiseNeighbours in reach are skipped. The quadratic
 /// takes out the curvature that a plane reads as noise, leaving the point out keeps the fit
 /// from absorbing its noise, and the radius keeps a coarse surface (a mesh of a few thousand
 /// vertices) from reading its shape as noise.
@@ -32,10 +37,8 @@ struct NoiseEstimate {
 /// the cloud is read again at every second point (then every 4th, ... 16th), which widens
 /// their reach by 1.4 each time, until the reading grows by less than 10 % or the radius
 /// stops the reach growing; the last reading is kept, with its stride.
-/// Most neighbours a noise reading may fit to (its fits are held inline).
-inline constexpr int kMaxNoiseNeighbours = 500;
-
-/// @pre samples >= 1, 10 <= k <= kMaxNoiseNeighbours, radius > 0, @p index over @p points.
+/// @pre samples >= 1, kMinNoiseNeighbours <= k <= kMaxNoiseNeighbours, radius > 0, @p index
+/// over @p points.
 NoiseEstimate EstimateNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, int samples,
                             int k, double radius);
 

@@ -48,14 +48,14 @@ Similarity RefineSimilarity(const Eigen::Matrix3Xd& template_samples,
                             Similarity fit, int iterations) {
   const Eigen::Index n = template_samples.cols();
   Eigen::Matrix3Xd placed(3, n), matched(3, n), src(3, n), dst(3, n);
-  std::vector<double> d(static_cast<std::size_t>(n)), sorted(d.size());
+  std::vector<double> d(static_cast<std::size_t>(n)), sorted;
   for (int it = 0; it < iterations; ++it) {
     for (Eigen::Index i = 0; i < n; ++i) {
       placed.col(i) = fit(template_samples.col(i));
       matched.col(i) = target.col(target_index.Nearest(placed.col(i)));
       d[static_cast<std::size_t>(i)] = (matched.col(i) - placed.col(i)).norm();
     }
-    std::copy(d.begin(), d.end(), sorted.begin());
+    sorted = d;
     const std::size_t cut = static_cast<std::size_t>(0.7 * (sorted.size() - 1));
     std::nth_element(sorted.begin(), sorted.begin() + cut, sorted.end());
     const double limit = sorted[cut];

@@ -89,7 +89,7 @@ const std::array kKeys = {
     VB_PROFILE_KEY(dense.surface_noise, kNoise, 1e-5, 0.1, false, "noise up to which surface_neighbours suffice"),
     VB_PROFILE_KEY(dense.surface_radius, kSize, 0.001, 0.3, false, "plane points average no farther"),
     VB_PROFILE_KEY(dense.noise_samples, kCount, 10, 100000, false, "points the noise is read at"),
-    VB_PROFILE_KEY(dense.noise_neighbours, kCount, 12, kMaxNoiseNeighbours, false, "neighbours of a noise reading"),
+    VB_PROFILE_KEY(dense.noise_neighbours, kCount, kMinNoiseNeighbours, kMaxNoiseNeighbours, false, "neighbours of a noise reading"),
     VB_PROFILE_KEY(dense.noise_radius, kSize, 0.001, 0.3, false, "reach of a noise reading"),
     VB_PROFILE_KEY(dense.noise_reference, kNoise, 1e-5, 0.1, false, "noise at which the data weight halves"),
     VB_PROFILE_KEY(dense.max_tangent_reach, "plane radii", 0.0, 100.0, false, "template pairs farther along the target's plane dropped (0: off)"),

@@ -364,6 +364,25 @@ TEST(EstimateNoiseTest, ReadsCloudsDenserThanTheirNoiseAtEveryNthPoint) {
   }
 }
 
+TEST(EstimateNoiseTest, ReadsTheNoiseAtTheFewestAndMostNeighboursAllowed) {
+  // 20,000 points on a unit sphere, sigma 0.01: the most neighbours (500) fill the fits'
+  // inline rows; the fewest (12) leave the quadratic two points per coefficient.
+  const Eigen::Matrix3Xd sphere = SpherePoints(20000, 14);
+  std::mt19937_64 rng(15);
+  std::normal_distribution<double> g(0.0, 0.01);
+  Eigen::Matrix3Xd points = sphere;
+  for (Eigen::Index i = 0; i < points.cols(); ++i) points.col(i) *= 1.0 + g(rng);
+  const PointIndex index(points);
+  const NoiseEstimate most = EstimateNoise(points, index, 1000, kMaxNoiseNeighbours, 0.5);
+  const NoiseEstimate fewest = EstimateNoise(points, index, 1000, kMinNoiseNeighbours, 0.5);
+  std::printf("sigma read: %.5f with %d neighbours, %.5f with %d\n", most.sigma,
+              kMaxNoiseNeighbours, fewest.sigma, kMinNoiseNeighbours);
+  // Measured: 0.98 and 1.25 sigma (twelve points leave a quadratic little to average).
+  EXPECT_NEAR(most.sigma, 0.01, 0.001);
+  EXPECT_GT(fewest.sigma, 1.1 * 0.01);
+  EXPECT_LT(fewest.sigma, 1.4 * 0.01);
+}
+
 TEST(EstimateNoiseTest, ReadsZeroWhenNoPointHasEnoughNeighbours) {
   const Eigen::Matrix3Xd few = SpherePoints(8, 9);
   EXPECT_EQ(EstimateNoise(few, PointIndex(few), 1000, 60, 10.0).sigma, 0.0);

@@ -88,10 +88,9 @@ TEST(MorphAllocationsTest, TheRigidityFilterAllocatesTensNotThousands) {
 using MorphAllocationsLambTest = test::LambTemplateTest;
 
 // A whole morph of a lamb cloud (18,712 points) on a warm Morpher: measured 8,443
-// allocations (docs/decisions.md has the steps that brought it there). Most of what is left
-// is the cloud skeleton's maps and lists, the feature search, the kd-trees built per target
-// and the deformation's solver. Under AddressSanitizer only operator new is counted (not
-// Eigen's malloc), so there the ceiling holds loosely.
+// allocations (docs/decisions.md has the steps that brought it there, and where the rest
+// are made). Under AddressSanitizer only operator new is counted (not Eigen's malloc), so
+// there the ceiling holds loosely.
 TEST_F(MorphAllocationsLambTest, AWarmMorphStaysUnderItsCeiling) {
   const Eigen::Matrix3Xd cloud = test::HangingCloud(*carcass_, 4000037u, 0.004);
   MorphOptions options;

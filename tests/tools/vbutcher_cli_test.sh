@@ -356,9 +356,9 @@ check "capture fuses the rig's frames" 0 "wrote" \
 [ -s "$work/fused.ply" ] || { echo "FAIL: capture wrote no cloud"; failures=$((failures + 1)); }
 # A rig that sees the carcass from one side only: the morph places the hidden half from the
 # template alone, and the cuts' coverage must keep them under the daemon's job.min_confidence
-# (0.6), so that the saw would get no waypoints; two cameras must clear it. Measured, virtual
-# rigs of seeds 1 to 5: the lowest cut confidence 0.45 to 0.53 with one camera, 0.87 to 0.94
-# with two.
+# (0.6), so that the saw would get no waypoints; two cameras must clear it. Measured, the
+# lowest cut confidence: with one camera 0.45 to 0.53 (virtual rigs of seeds 1 to 5), with
+# two 0.87 to 0.94 (seeds 1, 2, 4, 5). A seed's captures are the same frames every run.
 for cameras in 1 2; do
   check "virtual-rig writes a $cameras-camera rig" 0 "VB_VIRTUAL_SCENE" \
     "$vbutcher" virtual-rig --out "$work/rig$cameras" --cameras "$cameras" --seed 1
@@ -372,10 +372,10 @@ done
 import json, sys
 one, two = (min(c["confidence"] for c in json.load(open(f))["cuts"]) for f in sys.argv[1:])
 print(f"lowest cut confidence: one camera {one:.2f}, two cameras {two:.2f}")
-if not (0.35 <= one < 0.6):
-    sys.exit(f"FAIL: one camera's lowest cut confidence {one:.2f} is not in [0.35, 0.6)")
-if not (0.6 <= two <= 1.0):
-    sys.exit(f"FAIL: two cameras' lowest cut confidence {two:.2f} is not in [0.6, 1]")
+if not (0.4 <= one < 0.6):
+    sys.exit(f"FAIL: one camera's lowest cut confidence {one:.2f} is not in [0.4, 0.6)")
+if not two >= 0.6:
+    sys.exit(f"FAIL: two cameras' lowest cut confidence {two:.2f} is under 0.6")
 print("ok: one camera's cuts are not trusted, two cameras' are")
 PY
 check "record writes .oni files and a playback rig" 0 "playback calibration" \
