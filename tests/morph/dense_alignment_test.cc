@@ -367,11 +367,7 @@ TEST(EstimateNoiseTest, ReadsCloudsDenserThanTheirNoiseAtEveryNthPoint) {
 TEST(EstimateNoiseTest, ReadsTheNoiseAtTheFewestAndMostNeighboursAllowed) {
   // 20,000 points on a unit sphere, sigma 0.01: the most neighbours (500) fill the fits'
   // inline rows; the fewest (12) leave the quadratic two points per coefficient.
-  const Eigen::Matrix3Xd sphere = SpherePoints(20000, 14);
-  std::mt19937_64 rng(15);
-  std::normal_distribution<double> g(0.0, 0.01);
-  Eigen::Matrix3Xd points = sphere;
-  for (Eigen::Index i = 0; i < points.cols(); ++i) points.col(i) *= 1.0 + g(rng);
+  const Eigen::Matrix3Xd points = Roughened(SpherePoints(20000, 14), 0.01, 15);
   const PointIndex index(points);
   const NoiseEstimate most = EstimateNoise(points, index, 1000, kMaxNoiseNeighbours, 0.5);
   const NoiseEstimate fewest = EstimateNoise(points, index, 1000, kMinNoiseNeighbours, 0.5);
