@@ -3,7 +3,6 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
-#include <memory>
 #include <vector>
 
 #include "io/error.h"
@@ -11,10 +10,9 @@
 namespace vb::morph {
 
 Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointIndex& index, int k,
-                                 int passes, const Eigen::Matrix3Xd& reference,
-                                 const Eigen::Matrix3Xd& reference_normals, WorkerPool* pool) {
+                                 int passes, const Eigen::Matrix3Xd& hints, WorkerPool* pool) {
   VB_DEMAND(k >= 3 && passes >= 1 && index.size() == points.cols() &&
-            reference.cols() == reference_normals.cols());
+            (hints.cols() == 0 || hints.cols() == points.cols()));
   const Eigen::Index n = points.cols();
   Eigen::Matrix3Xd normals(3, n);
   if (n == 0) return normals;
@@ -53,9 +51,7 @@ Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointInde
     });
     moments.swap(widened);
   }
-  const bool oriented = reference.cols() > 0;
-  std::unique_ptr<PointIndex> reference_index;
-  if (oriented) reference_index = std::make_unique<PointIndex>(reference);
+  const bool oriented = hints.cols() > 0;
   ForEachBlock(pool, n, kBlock, [&](Eigen::Index first, Eigen::Index last) {
     for (Eigen::Index i = first; i < last; ++i) {
       const auto m = moments.col(i);
@@ -65,9 +61,7 @@ Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointInde
       covariance = covariance / m[0] - mean * mean.transpose();
       Eigen::Vector3d normal =
           Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance).eigenvectors().col(0);
-      if (oriented &&
-          normal.dot(reference_normals.col(reference_index->Nearest(points.col(i)))) < 0)
-        normal = -normal;
+      if (oriented && normal.dot(hints.col(i)) < 0) normal = -normal;
       normals.col(i) = normal;
     }
   });

@@ -9,11 +9,11 @@
 // Normals of a point cloud.
 namespace vb::morph {
 
-/// Unit normals of a point cloud from principal axes (the direction of least spread),
-/// oriented to agree with the normal of the nearest @p reference point (a surface already
-/// close to the cloud, such as the posed template), so they point outward wherever the
-/// reference does. With no reference points the sign is arbitrary (for uses that compare
-/// directions only, such as the posture fit's normal compatibility).
+/// Unit normals of a point cloud from principal axes (the direction of least spread), each
+/// signed to agree with its column of @p hints (such as the normal of the nearest vertex of a
+/// surface already close to the cloud, the posed template's), so they point outward wherever
+/// the hints do. With no hints the sign is arbitrary (for uses that compare directions only,
+/// such as the posture fit's normal compatibility).
 ///
 /// With @p passes = 1 the axes are those of each point's @p k nearest neighbours. Every
 /// further pass widens the neighbourhood: it replaces each point's moments (count, sum and
@@ -22,13 +22,12 @@ namespace vb::morph {
 /// k x p points around it. Noisy clouds need that many: the normal's error falls with the
 /// points averaged, and a pass costs k additions a point where a k x p nearest-neighbour
 /// query costs several times more.
-/// @param[in] points 3 by N; @param[in] reference, reference_normals 3 by M, M >= 0.
+/// @param[in] points 3 by N; @param[in] hints 3 by N, or 3 by 0 for none.
 /// @pre k >= 3, passes >= 1, @p index over @p points.
 /// @param pool when given, the points are shared among its threads; the result is the same
 ///   on any number of threads.
 Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointIndex& index, int k,
-                                 int passes, const Eigen::Matrix3Xd& reference,
-                                 const Eigen::Matrix3Xd& reference_normals,
+                                 int passes, const Eigen::Matrix3Xd& hints,
                                  WorkerPool* pool = nullptr);
 
 /// Fits @p normals again over wider neighbourhoods: each point j with @p counts[j] > 0 gets

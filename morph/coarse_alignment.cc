@@ -25,20 +25,25 @@ double Since(std::chrono::steady_clock::time_point start) {
 }
 
 // How badly the template, placed by `fit`, and the target disagree as surfaces: the mean of
-// closest-point distances both ways between a few hundred samples of each.
+// closest-point distances both ways between a few hundred samples of each. A target sample's
+// nearest placed template sample is looked up in the template's frame (@p template_index over
+// @p template_samples), where `fit` keeps which sample is nearest, so nothing is built per
+// placement.
 double SurfaceDisagreement(const Eigen::Matrix3Xd& template_samples,
+                           const PointIndex& template_index,
                            const Eigen::Matrix3Xd& target_samples, const PointIndex& target_index,
                            const Eigen::Matrix3Xd& target, const Similarity& fit) {
-  Eigen::Matrix3Xd placed(3, template_samples.cols());
-  for (Eigen::Index i = 0; i < placed.cols(); ++i) placed.col(i) = fit(template_samples.col(i));
   double sum = 0.0;
-  for (Eigen::Index i = 0; i < placed.cols(); ++i)
-    sum += (target.col(target_index.Nearest(placed.col(i))) - placed.col(i)).norm();
-  const PointIndex placed_index(placed);
-  for (Eigen::Index i = 0; i < target_samples.cols(); ++i) {
-    sum += (placed.col(placed_index.Nearest(target_samples.col(i))) - target_samples.col(i)).norm();
+  for (Eigen::Index i = 0; i < template_samples.cols(); ++i) {
+    const Eigen::Vector3d placed = fit(template_samples.col(i));
+    sum += (target.col(target_index.Nearest(placed)) - placed).norm();
   }
-  return sum / static_cast<double>(placed.cols() + target_samples.cols());
+  const Similarity back = fit.Inverse();
+  for (Eigen::Index i = 0; i < target_samples.cols(); ++i) {
+    const int nearest = template_index.Nearest(back(target_samples.col(i)));
+    sum += (fit(template_samples.col(nearest)) - target_samples.col(i)).norm();
+  }
+  return sum / static_cast<double>(template_samples.cols() + target_samples.cols());
 }
 
 // Rounds of closest-point similarity fitting (Umeyama with scale) from `fit`, each on the
@@ -170,8 +175,7 @@ Eigen::Matrix3Xd PostureNormals(const Eigen::Matrix3Xd& target, const PointIndex
     }
     return out;
   }
-  return EstimateNormals(target, index, std::max(3, neighbours), 1, Eigen::Matrix3Xd(3, 0),
-                         Eigen::Matrix3Xd(3, 0), pool);
+  return EstimateNormals(target, index, std::max(3, neighbours), 1, Eigen::Matrix3Xd(3, 0), pool);
 }
 
 }  // namespace
@@ -222,6 +226,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   std::erase_if(candidates, [](const Association& a) { return !a.from_to.Usable(); });
   const std::size_t skeleton_candidates = candidates.size();
   const Eigen::Matrix3Xd template_samples = EveryNth(model.V, options.verification_samples);
+  const PointIndex template_index(template_samples);
   const Eigen::Matrix3Xd target_samples = EveryNth(target, options.verification_samples);
   VB_DEMAND(given_index == nullptr || given_index->size() == target.cols());
   std::unique_ptr<PointIndex> own_index;
@@ -234,7 +239,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   std::vector<double> disagreements(candidates.size());
   ForEach(pool, static_cast<int>(candidates.size()), [&](int k) {
     disagreements[static_cast<std::size_t>(k)] =
-        SurfaceDisagreement(template_samples, target_samples, target_index, target,
+        SurfaceDisagreement(template_samples, template_index, target_samples, target_index, target,
                             candidates[static_cast<std::size_t>(k)].from_to);
   });
   // The skeleton fits are only as good as the skeletons: the best few placements are
@@ -253,7 +258,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
                                                   candidates[k].from_to, options.refine_iterations);
       if (!refined.Usable() || !association.AcceptsOrientation(refined.R)) return;
       const double d =
-          SurfaceDisagreement(template_samples, target_samples, target_index, target, refined);
+          SurfaceDisagreement(template_samples, template_index, target_samples, target_index, target, refined);
       if (d < disagreements[k]) {
         candidates[k].from_to = refined;
         disagreements[k] = d;
@@ -271,7 +276,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
       (*refined)[k] = RefineSimilarity(template_samples, target_index, target, starts[k],
                                        options.refine_iterations);
       if (!(*refined)[k].Usable() || !association.AcceptsOrientation((*refined)[k].R)) return;
-      (*disagreement)[k] = SurfaceDisagreement(template_samples, target_samples, target_index,
+      (*disagreement)[k] = SurfaceDisagreement(template_samples, template_index, target_samples, target_index,
                                                target, (*refined)[k]);
     });
   };
@@ -531,8 +536,10 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   // skeletonisers; the deformation is kept only if it brings the surfaces closer than the
   // rigid placement did.
   if (options.check_deformation && !constraints.empty()) {
-    const double deformed = SurfaceDisagreement(EveryNth(posed, options.verification_samples),
-                                                target_samples, target_index, target, to_target);
+    const Eigen::Matrix3Xd posed_samples = EveryNth(posed, options.verification_samples);
+    const double deformed =
+        SurfaceDisagreement(posed_samples, PointIndex(posed_samples), target_samples,
+                            target_index, target, to_target);
     result.deformation_kept = deformed <= result.disagreement * to_target.scale;
     if (!result.deformation_kept) {
       result.state = DeformationState::Identity(model.graph.num_nodes());

@@ -25,15 +25,15 @@ double Since(std::chrono::steady_clock::time_point start) {
 // normal_curvature_reach, max_normal_neighbours): per point, a count of nearest points and the
 // radius they must lie within, count 0 where min_normal_neighbours points are as far as the
 // shape allows. @p density is points per unit area (the cloud's median) and @p noise the
-// estimated sigma, template sizes.
+// estimated sigma, template sizes; @p nearest each point's nearest vertex of @p posed.
 struct NormalReach {
   std::vector<int> counts;
   std::vector<double> radii;
 };
 
 NormalReach WiderNormalReach(const geometry::TriangleMesh& posed, const Eigen::Matrix3Xd& points,
-                             double density, double noise, const DenseOptions& options,
-                             WorkerPool* pool) {
+                             const std::vector<int>& nearest, double density, double noise,
+                             const DenseOptions& options) {
   NormalReach wider{std::vector<int>(static_cast<std::size_t>(points.cols()), 0),
                     std::vector<double>(static_cast<std::size_t>(points.cols()), 0.0)};
   if (!(density > 0.0)) return wider;
@@ -43,7 +43,6 @@ NormalReach WiderNormalReach(const geometry::TriangleMesh& posed, const Eigen::M
       std::max(options.normal_reach * noise, std::sqrt(options.normal_neighbours / area_count));
   if (!(wanted_reach > fewest_reach)) return wider;
   const Eigen::VectorXd curvature = geometry::CurvatureSums(posed, posed.N);
-  const std::vector<int> nearest = NearestEach(PointIndex(posed.V), points, pool);
   for (std::size_t j = 0; j < nearest.size(); ++j) {
     // No farther than normal_curvature_reach radii of curvature (1 / |k1 + k2|).
     const double bend = std::abs(curvature[nearest[j]]);
@@ -121,6 +120,8 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   // Estimated normals average over more points as the noise grows, as the plane points
   // below do.
   phase = std::chrono::steady_clock::now();
+  // Each point's nearest vertex of the posed template: its normal signs the point's.
+  const std::vector<int> nearest_posed = NearestEach(PointIndex(posed.V), points, pool);
   Eigen::Matrix3Xd normals;
   if (target_normals.cols() == 0) {
     result.normal_passes = static_cast<int>(
@@ -131,9 +132,10 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     normals = EstimateNormals(
         points, *index,
         result.normal_passes == 1 ? options.min_normal_neighbours : options.normal_neighbours,
-        result.normal_passes, posed.V, posed.N, pool);
+        result.normal_passes, posed.N(Eigen::all, nearest_posed), pool);
     if (result.normal_passes == 1) {
-      const NormalReach wider = WiderNormalReach(posed, points, density, noise, options, pool);
+      const NormalReach wider =
+          WiderNormalReach(posed, points, nearest_posed, density, noise, options);
       result.widened_normals = static_cast<int>(
           std::count_if(wider.counts.begin(), wider.counts.end(), [](int k) { return k > 0; }));
       if (result.widened_normals > 0)
@@ -145,10 +147,9 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     normals = to_template.R * used;
     // Another program's normals may all point inward. Most of them disagreeing with the
     // posed template's nearest normal says so, and then every one is turned.
-    const std::vector<int> nearest = NearestEach(PointIndex(posed.V), points, pool);
     Eigen::Index agree = 0;
     for (Eigen::Index j = 0; j < points.cols(); ++j)
-      agree += normals.col(j).dot(posed.N.col(nearest[static_cast<std::size_t>(j)])) > 0.0;
+      agree += normals.col(j).dot(posed.N.col(nearest_posed[static_cast<std::size_t>(j)])) > 0.0;
     if (2 * agree < points.cols()) {
       normals = -normals;
       result.turned_normals = true;
