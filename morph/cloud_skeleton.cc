@@ -11,9 +11,7 @@
 #include <boost/graph/compressed_sparse_row_graph.hpp>
 // clang-format on
 #include <cmath>
-#include <map>
 #include <span>
-#include <unordered_map>
 
 #include "geometry/mesh_measures.h"
 #include "io/error.h"
@@ -268,61 +266,81 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
     }
   }
   // Fold noise-sized pieces into the neighbouring piece of their band they share the most
-  // graph edges with.
+  // graph edges with (the lowest-numbered one on a tie).
   {
-    std::unordered_map<int, int> piece_points;
+    // Points of each piece, at its root.
+    std::vector<int> piece_points(static_cast<std::size_t>(n), 0);
     for (int i = 0; i < n; ++i) {
-      if (band_of[static_cast<std::size_t>(i)] >= 0) ++piece_points[piece_of(i)];
+      if (band_of[static_cast<std::size_t>(i)] >= 0)
+        ++piece_points[static_cast<std::size_t>(piece_of(i))];
     }
     std::vector<int> sizes;
-    for (const auto& [root, count] : piece_points) sizes.push_back(count);
+    for (const int count : piece_points) {
+      if (count > 0) sizes.push_back(count);
+    }
     if (!sizes.empty()) {
       std::nth_element(sizes.begin(), sizes.begin() + static_cast<std::ptrdiff_t>(sizes.size() / 2),
                        sizes.end());
       const double small = options.min_band_piece * sizes[sizes.size() / 2];
-      std::unordered_map<int, std::unordered_map<int, int>> touching;
+      const auto points_of = [&](int root) { return piece_points[static_cast<std::size_t>(root)]; };
+      // Each graph edge between two pieces side by side in one band, both ways round as
+      // (piece, neighbour); sorted, a run of equal pairs counts the edges they share. Pieces
+      // of neighbouring bands are left out: a limb's last, small band piece continues a chain
+      // from the band before and must stay a tip.
+      std::vector<std::pair<int, int>> touching;
       for (const auto& [a, b, unused] : graph_edges) {
-        if (band_of[static_cast<std::size_t>(a)] < 0 || band_of[static_cast<std::size_t>(b)] < 0)
-          continue;
-        const int ra = piece_of(a), rb = piece_of(b);
-        // Only pieces side by side in one band: a limb's last, small band piece continues a
-        // chain from the band before and must stay a tip.
-        if (ra == rb ||
+        if (band_of[static_cast<std::size_t>(a)] < 0 ||
             band_of[static_cast<std::size_t>(a)] != band_of[static_cast<std::size_t>(b)])
           continue;
-        ++touching[ra][rb];
-        ++touching[rb][ra];
+        const int ra = piece_of(a), rb = piece_of(b);
+        if (ra == rb) continue;
+        touching.emplace_back(ra, rb);
+        touching.emplace_back(rb, ra);
       }
-      for (const auto& [root, count] : piece_points) {
-        if (count >= small) continue;
+      std::sort(touching.begin(), touching.end());
+      for (std::size_t at = 0; at < touching.size();) {
+        const int root = touching[at].first;
         int best = -1, best_edges = 0;
-        for (const auto& [other, edges] : touching[root]) {
-          if (edges > best_edges && piece_points[other] >= small) {
+        for (; at < touching.size() && touching[at].first == root;) {
+          std::size_t end = at + 1;
+          while (end < touching.size() && touching[end] == touching[at]) ++end;
+          const int other = touching[at].second;
+          const int edges = static_cast<int>(end - at);
+          if (edges > best_edges && points_of(other) >= small) {
             best = other;
             best_edges = edges;
           }
+          at = end;
         }
-        if (best >= 0) pieces.union_set(root, best);
+        if (points_of(root) < small && best >= 0) pieces.union_set(root, best);
       }
     }
   }
-  std::unordered_map<int, int> node_of_root;
-  std::vector<Eigen::Vector3d> sums;
-  SkeletonGraph skeleton;
+  // One skeleton node per piece, numbered in the order of the pieces' first points.
+  std::vector<int> node_of_root(static_cast<std::size_t>(n), -1);
   std::vector<int> node_of(static_cast<std::size_t>(n), -1);
+  std::vector<std::size_t> support_size;
   for (int i = 0; i < n; ++i) {
     if (band_of[static_cast<std::size_t>(i)] < 0) continue;
-    const auto [it, inserted] =
-        node_of_root.try_emplace(piece_of(i), static_cast<int>(sums.size()));
-    if (inserted) {
-      sums.emplace_back(Eigen::Vector3d::Zero());
-      skeleton.support.emplace_back();
+    int& node = node_of_root[static_cast<std::size_t>(piece_of(i))];
+    if (node < 0) {
+      node = static_cast<int>(support_size.size());
+      support_size.push_back(0);
     }
-    node_of[static_cast<std::size_t>(i)] = it->second;
+    node_of[static_cast<std::size_t>(i)] = node;
+    support_size[static_cast<std::size_t>(node)] += members[i].size();
+  }
+  SkeletonGraph skeleton;
+  std::vector<Eigen::Vector3d> sums(support_size.size(), Eigen::Vector3d::Zero());
+  skeleton.support.resize(support_size.size());
+  for (std::size_t v = 0; v < support_size.size(); ++v)
+    skeleton.support[v].reserve(support_size[v]);
+  for (int i = 0; i < n; ++i) {
+    const int node = node_of[static_cast<std::size_t>(i)];
+    if (node < 0) continue;
     const std::span<const int> averaged = members[i];
-    sums[static_cast<std::size_t>(it->second)] +=
-        points.col(i) * static_cast<double>(averaged.size());
-    auto& support = skeleton.support[static_cast<std::size_t>(it->second)];
+    sums[static_cast<std::size_t>(node)] += points.col(i) * static_cast<double>(averaged.size());
+    auto& support = skeleton.support[static_cast<std::size_t>(node)];
     support.insert(support.end(), averaged.begin(), averaged.end());
   }
   skeleton.nodes.resize(3, static_cast<Eigen::Index>(sums.size()));
@@ -332,14 +350,16 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
   }
 
   // Join pieces that touch across neighbouring bands, then keep a minimum spanning tree.
-  std::map<std::pair<int, int>, bool> links;
+  std::vector<std::pair<int, int>> links;
   for (const auto& [a, b, unused] : graph_edges) {
     const int na = node_of[static_cast<std::size_t>(a)], nb = node_of[static_cast<std::size_t>(b)];
     if (na < 0 || nb < 0 || na == nb) continue;
-    links[{std::min(na, nb), std::max(na, nb)}] = true;
+    links.emplace_back(std::min(na, nb), std::max(na, nb));
   }
+  std::sort(links.begin(), links.end());
+  links.erase(std::unique(links.begin(), links.end()), links.end());
   Graph nodes_graph(sums.size());
-  for (const auto& [link, unused] : links) {
+  for (const auto& link : links) {
     boost::add_edge(static_cast<std::size_t>(link.first), static_cast<std::size_t>(link.second),
                     (skeleton.nodes.col(link.first) - skeleton.nodes.col(link.second)).norm(),
                     nodes_graph);
