@@ -82,7 +82,7 @@ std::vector<std::pair<int, int>> PairBranches(const BranchGuide& guide,
   Eigen::MatrixXd cost = Eigen::MatrixXd::Constant(na, nb, std::numeric_limits<double>::infinity());
   for (int a = 0; a < na; ++a) {
     for (int b = 0; b < nb; ++b) {
-      const double la = guide.template_length[static_cast<std::size_t>(a)];
+      const double la = guide.limbs->length[static_cast<std::size_t>(a)];
       const double lb = guide.target_length[static_cast<std::size_t>(b)] / scale;
       if (!(la > 0 && lb > 0) || std::max(la, lb) > options.branch_max_ratio * std::min(la, lb))
         continue;
@@ -105,49 +105,9 @@ std::vector<std::pair<int, int>> PairBranches(const BranchGuide& guide,
 BranchGuide MakeBranchGuide(const TemplateModel& model, const SkeletonGraph& target_skeleton,
                             const FeatureNodes& target_features) {
   BranchGuide guide;
-  const std::vector<SkeletonBranch> mine = TerminalBranches(model.skeleton, model.features);
+  guide.limbs = &model.limbs;
   const std::vector<SkeletonBranch> theirs = TerminalBranches(target_skeleton, target_features);
   constexpr int kSamples = BranchGuide::kSamples;
-  guide.template_rest.resize(3, static_cast<Eigen::Index>(mine.size()) * kSamples);
-  std::vector<std::vector<int>> support;
-  for (std::size_t a = 0; a < mine.size(); ++a) {
-    guide.template_length.push_back(mine[a].length());
-    for (int k = 0; k < kSamples; ++k) {
-      int node = 0;
-      guide.template_rest.col(BranchGuide::Column(static_cast<int>(a), k)) =
-          PointAlong(model.skeleton, mine[a], static_cast<double>(k) / (kSamples - 1), &node);
-      support.push_back(static_cast<std::size_t>(node) < model.skeleton.support.size()
-                            ? model.skeleton.support[static_cast<std::size_t>(node)]
-                            : std::vector<int>{});
-    }
-  }
-  guide.template_weights =
-      PointWeights(guide.template_rest, support, model.graph, model.vertex_weights,
-                   static_cast<int>(model.terminal_weights.nodes.rows()));
-  // Each graph node's limb: the branch whose skeleton nodes stand for its vertex.
-  const auto num_vertices = static_cast<std::size_t>(model.V.cols());
-  std::vector<int> vertex_branch(num_vertices, -1);
-  std::vector<double> vertex_along(num_vertices, 0.0);
-  for (std::size_t a = 0; a < mine.size(); ++a) {
-    const SkeletonBranch& branch = mine[a];
-    if (!(branch.length() > 0)) continue;
-    for (std::size_t k = 1; k < branch.nodes.size(); ++k) {
-      const auto node = static_cast<std::size_t>(branch.nodes[k]);
-      if (node >= model.skeleton.support.size()) continue;
-      for (const int v : model.skeleton.support[node]) {
-        const auto s = static_cast<std::size_t>(v);
-        if (v < 0 || s >= num_vertices || vertex_branch[s] >= 0) continue;
-        vertex_branch[s] = static_cast<int>(a);
-        vertex_along[s] = branch.distance[k] / branch.length();
-      }
-    }
-  }
-  for (const int v : model.graph.node_vertex) {
-    guide.node_branch.push_back(vertex_branch[static_cast<std::size_t>(v)]);
-    guide.node_along.push_back(vertex_along[static_cast<std::size_t>(v)]);
-  }
-  guide.vertex_branch = std::move(vertex_branch);
-  guide.vertex_along = std::move(vertex_along);
   guide.target_points.resize(3, static_cast<Eigen::Index>(theirs.size()) * kSamples);
   for (std::size_t b = 0; b < theirs.size(); ++b) {
     guide.target_length.push_back(theirs[b].length());
@@ -332,10 +292,10 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
     }
     if (use_branches) {
       const Eigen::Matrix3Xd along =
-          DeformPoints(model.graph, guide->template_weights, guide->template_rest, result.state);
+          DeformPoints(model.graph, guide->limbs->weights, guide->limbs->rest, result.state);
       for (const auto& [a, b] :
            PairBranches(*guide, along, branch_targets, placement.scale, 0.75, options)) {
-        const double la = guide->template_length[static_cast<std::size_t>(a)];
+        const double la = guide->limbs->length[static_cast<std::size_t>(a)];
         const double lb = guide->target_length[static_cast<std::size_t>(b)] / placement.scale;
         const double shorter = std::min(la, lb);
         for (const double share : {0.5, 0.75, 1.0}) {
@@ -343,8 +303,8 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
               BranchGuide::Column(a, BranchGuide::SampleAt(share * shorter / la));
           const Eigen::Index to =
               BranchGuide::Column(b, BranchGuide::SampleAt(share * shorter / lb));
-          PointConstraint c = ConstrainPoint(guide->template_weights, from,
-                                             guide->template_rest.col(from), branch_targets.col(to));
+          PointConstraint c = ConstrainPoint(guide->limbs->weights, from,
+                                             guide->limbs->rest.col(from), branch_targets.col(to));
           c.weight = per_pair * branch_weight;
           constraints.push_back(std::move(c));
         }

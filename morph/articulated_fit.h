@@ -109,10 +109,10 @@ struct ArticulationOptions {
 
 /// Both skeletons' limbs (TerminalBranches), each sampled at kSamples evenly spaced arc
 /// lengths from its root to its tip, for ArticulationOptions' branch pulls, TurnLimbs and
-/// SwingLimbs.
+/// SwingLimbs: the template's made once (TemplateModel::limbs), the target's per target.
 struct BranchGuide {
-  static constexpr int kSamples = 21;
-  /// The column of sample @p k of branch @p b in the matrices below.
+  static constexpr int kSamples = TemplateLimbs::kSamples;
+  /// The column of sample @p k of branch @p b in the matrices below and in TemplateLimbs::rest.
   static Eigen::Index Column(int b, int k) {
     return static_cast<Eigen::Index>(b) * kSamples + k;
   }
@@ -120,26 +120,14 @@ struct BranchGuide {
   static int SampleAt(double fraction) {
     return static_cast<int>(std::lround(std::clamp(fraction, 0.0, 1.0) * (kSamples - 1)));
   }
-  /// Template side, normalised frame: kSamples columns per branch, root first.
-  Eigen::Matrix3Xd template_rest;
-  NodeWeights template_weights;         ///< eq. (10) weights of those points
-  std::vector<double> template_length;  ///< per branch, template sizes
-  /// Per deformation-graph node: the template branch whose limb it lies on (-1: the trunk,
-  /// or a root), for TurnLimbs and SwingLimbs.
-  std::vector<int> node_branch;
-  /// Per template vertex: the branch whose limb it lies on (-1: the trunk).
-  std::vector<int> vertex_branch;
-  /// Per template vertex on a limb: how far out along its branch the skeleton node that
-  /// stands for it lies, a fraction of the branch's length (0 on the trunk).
-  std::vector<double> vertex_along;
-  /// Per deformation-graph node, likewise (its vertex's).
-  std::vector<double> node_along;
-  /// Target side, in the target's frame and units, likewise.
+  /// Template side, normalised frame: the model's own (none in a guide made empty).
+  const TemplateLimbs* limbs = nullptr;
+  /// Target side, in the target's frame and units: kSamples columns per branch, root first.
   Eigen::Matrix3Xd target_points;
   std::vector<double> target_length;
   /// Per target branch: the target points its skeleton nodes stand for, its root's left out.
   std::vector<std::vector<int>> target_support;
-  int num_template_branches() const { return static_cast<int>(template_length.size()); }
+  int num_template_branches() const { return limbs != nullptr ? limbs->num_branches() : 0; }
   int num_target_branches() const { return static_cast<int>(target_length.size()); }
 };
 
@@ -156,10 +144,9 @@ struct TemplateSamples {
 };
 TemplateSamples SampleTemplate(const TemplateModel& model, int wanted);
 
-/// The guide between @p model's skeleton and a target's (@p target_skeleton and the
-/// @p target_features extracted from it, in the target's frame). A template vertex, and so a
-/// graph node, lies on the limb whose skeleton nodes (its root's left out) stand for it; one
-/// two limbs share goes to the first.
+/// The guide between @p model's limbs and a target's (@p target_skeleton and the
+/// @p target_features extracted from it, in the target's frame). @pre @p model outlives the
+/// guide.
 BranchGuide MakeBranchGuide(const TemplateModel& model, const SkeletonGraph& target_skeleton,
                             const FeatureNodes& target_features);
 

@@ -25,14 +25,14 @@ constexpr double kRounding = 1e-9;
 // the template's frame.
 Eigen::Matrix3d LimbTurn(const BranchGuide& guide, const Eigen::Matrix3Xd& theirs, int a, int b,
                          double scale) {
-  const double la = guide.template_length[static_cast<std::size_t>(a)];
+  const double la = guide.limbs->length[static_cast<std::size_t>(a)];
   const double lb = guide.target_length[static_cast<std::size_t>(b)] / scale;
   const double shorter = std::min(la, lb);
   constexpr int n = BranchGuide::kSamples;
   Eigen::Matrix3Xd p(3, n), q(3, n);
   for (int k = 0; k < n; ++k) {
     const double s = shorter * k / (n - 1);
-    p.col(k) = guide.template_rest.col(BranchGuide::Column(a, BranchGuide::SampleAt(s / la)));
+    p.col(k) = guide.limbs->rest.col(BranchGuide::Column(a, BranchGuide::SampleAt(s / la)));
     q.col(k) = theirs.col(BranchGuide::Column(b, BranchGuide::SampleAt(s / lb)));
   }
   const auto axis = [](const Eigen::Matrix3Xd& x) {
@@ -57,11 +57,11 @@ double MeanNearest(const Eigen::Matrix3Xd& from, const Eigen::Matrix3Xd& to) {
 
 // True when graph node @p j lies on limb @p a at least @p from of the way out.
 bool OnLimbFrom(const BranchGuide& guide, std::size_t j, int a, double from) {
-  return guide.node_branch[j] == a && guide.node_along[j] >= from;
+  return guide.limbs->node_branch[j] == a && guide.limbs->node_along[j] >= from;
 }
 
-// @p state with every graph node of limb @p a (BranchGuide::node_branch) at least @p from of
-// the way out (BranchGuide::node_along) turned by @p turn and moved so that each maps the
+// @p state with every graph node of limb @p a (TemplateLimbs::node_branch) at least @p from of
+// the way out (TemplateLimbs::node_along) turned by @p turn and moved so that each maps the
 // rest point @p root_rest onto @p root: that part of the limb in its rest shape, turned as a
 // whole and hung from @p root. The other nodes keep their transforms.
 // @pre @p turn is a rotation.
@@ -110,7 +110,7 @@ DeformationState TurnLimbs(const TemplateModel& model, const BranchGuide& guide,
                            int* turned, const DeformationState* current) {
   VB_DEMAND(target.cols() > 0 && target_index.size() == target.cols());
   VB_DEMAND(placement.Usable());
-  VB_DEMAND(static_cast<int>(guide.node_branch.size()) == model.graph.num_nodes());
+  VB_DEMAND(static_cast<int>(guide.limbs->node_branch.size()) == model.graph.num_nodes());
   VB_DEMAND(current == nullptr || static_cast<int>(current->t.size()) == model.graph.num_nodes());
   DeformationState state = DeformationState::Identity(model.graph.num_nodes());
   if (turned != nullptr) *turned = 0;
@@ -121,16 +121,16 @@ DeformationState TurnLimbs(const TemplateModel& model, const BranchGuide& guide,
 
   std::vector<std::vector<int>> limb_nodes(static_cast<std::size_t>(guide.num_template_branches()));
   for (int j = 0; j < model.graph.num_nodes(); ++j) {
-    const int a = guide.node_branch[static_cast<std::size_t>(j)];
+    const int a = guide.limbs->node_branch[static_cast<std::size_t>(j)];
     if (a >= 0) limb_nodes[static_cast<std::size_t>(a)].push_back(j);
   }
-  for (const auto& [a, b] : PairBranches(guide, guide.template_rest, theirs, placement.scale,
+  for (const auto& [a, b] : PairBranches(guide, guide.limbs->rest, theirs, placement.scale,
                                          options.limb_pair_fraction, options)) {
     const std::vector<int>& nodes = limb_nodes[static_cast<std::size_t>(a)];
     const std::vector<int>& support = guide.target_support[static_cast<std::size_t>(b)];
     if (nodes.size() < 2 || support.empty()) continue;
     const Eigen::Matrix3d R = LimbTurn(guide, theirs, a, b, placement.scale);
-    const Eigen::Vector3d root = guide.template_rest.col(BranchGuide::Column(a, 0));
+    const Eigen::Vector3d root = guide.limbs->rest.col(BranchGuide::Column(a, 0));
     const auto n = static_cast<Eigen::Index>(nodes.size());
     // The limb's nodes at rest, turned, and where the fit so far has them.
     Eigen::Matrix3Xd rest(3, n), moved(3, n), now(3, n);
@@ -177,10 +177,10 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
                             int* beyond_root, RootSwing* about_roots) {
   VB_DEMAND(target.cols() > 0 && target_index.size() == target.cols());
   VB_DEMAND(placement.Usable());
-  VB_DEMAND(static_cast<int>(guide.node_branch.size()) == model.graph.num_nodes());
-  VB_DEMAND(guide.vertex_branch.size() == static_cast<std::size_t>(model.V.cols()));
-  VB_DEMAND(guide.vertex_along.size() == guide.vertex_branch.size() &&
-            guide.node_along.size() == guide.node_branch.size());
+  VB_DEMAND(static_cast<int>(guide.limbs->node_branch.size()) == model.graph.num_nodes());
+  VB_DEMAND(guide.limbs->vertex_branch.size() == static_cast<std::size_t>(model.V.cols()));
+  VB_DEMAND(guide.limbs->vertex_along.size() == guide.limbs->vertex_branch.size() &&
+            guide.limbs->node_along.size() == guide.limbs->node_branch.size());
   VB_DEMAND(static_cast<int>(start.t.size()) == model.graph.num_nodes());
   DeformationState state = start;
   if (swung != nullptr) *swung = 0;
@@ -204,11 +204,11 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
   std::vector<int> order(static_cast<std::size_t>(num_limbs));
   for (int a = 0; a < num_limbs; ++a) order[static_cast<std::size_t>(a)] = a;
   std::stable_sort(order.begin(), order.end(), [&](int x, int y) {
-    return guide.template_length[static_cast<std::size_t>(x)] >
-           guide.template_length[static_cast<std::size_t>(y)];
+    return guide.limbs->length[static_cast<std::size_t>(x)] >
+           guide.limbs->length[static_cast<std::size_t>(y)];
   });
   std::vector<bool> has_nodes(static_cast<std::size_t>(num_limbs), false);
-  for (const int a : guide.node_branch)
+  for (const int a : guide.limbs->node_branch)
     if (a >= 0) has_nodes[static_cast<std::size_t>(a)] = true;
   std::vector<double> scores(directions.size());
   // Each direction's swung limb, grown to the largest limb scored: the scores below write
@@ -230,21 +230,22 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
     others.clear();
     for (Eigen::Index k = 0; k < ns; ++k) {
       const auto v = static_cast<std::size_t>(ids[static_cast<std::size_t>(k)]);
-      (guide.vertex_branch[v] == a && guide.vertex_along[v] >= from ? mine : others).push_back(k);
+      (guide.limbs->vertex_branch[v] == a && guide.limbs->vertex_along[v] >= from ? mine : others)
+          .push_back(k);
     }
     if (mine.size() < 3 || others.empty()) return none;
     bool carried = false;  // by a graph node the move turns
-    for (std::size_t j = 0; j < guide.node_branch.size() && !carried; ++j)
+    for (std::size_t j = 0; j < guide.limbs->node_branch.size() && !carried; ++j)
       carried = OnLimbFrom(guide, j, a, from);
     if (!carried) return none;
     const Eigen::Matrix3Xd limb = posed(Eigen::all, mine);
     const Eigen::Matrix3Xd trunk = posed(Eigen::all, others);
     NodeWeights root_weights;
-    root_weights.nodes = guide.template_weights.nodes.col(BranchGuide::Column(a, column));
-    root_weights.weights = guide.template_weights.weights.col(BranchGuide::Column(a, column));
+    root_weights.nodes = guide.limbs->weights.nodes.col(BranchGuide::Column(a, column));
+    root_weights.weights = guide.limbs->weights.weights.col(BranchGuide::Column(a, column));
     const Eigen::Vector3d root =
         DeformPoints(model.graph, root_weights,
-                     Eigen::Matrix3Xd(guide.template_rest.col(BranchGuide::Column(a, column))),
+                     Eigen::Matrix3Xd(guide.limbs->rest.col(BranchGuide::Column(a, column))),
                      from_state)
             .col(0);
     const Eigen::Vector3d axis = limb.rowwise().mean() - root;
@@ -314,7 +315,7 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
           model.graph, guide, a, from,
           NearestRotation(Eigen::JacobiSVD<Eigen::Matrix3d>(
               from_state.rotation(carrier), Eigen::ComputeFullU | Eigen::ComputeFullV)),
-          guide.template_rest.col(BranchGuide::Column(a, column)), root, from_state);
+          guide.limbs->rest.col(BranchGuide::Column(a, column)), root, from_state);
       const Eigen::Matrix3Xd rest_limb =
           DeformPoints(model.graph, sampled.weights, sampled.rest, at_rest)(Eigen::all, mine);
       if ((rest_limb.rowwise().mean() - root).norm() > 0) {

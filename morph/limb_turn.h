@@ -21,7 +21,7 @@ namespace vb::morph {
 /// is the least one that turns the template limb's axis onto the target limb's (each the
 /// principal direction of its branch's samples along the shorter of the two, from the
 /// root); the twist about the axis, which a limb's samples cannot tell, is left to the
-/// posture fit. It turns every graph node of the template limb (BranchGuide::node_branch)
+/// posture fit. It turns every graph node of the template limb (TemplateLimbs::node_branch)
 /// about the template branch's root, and is kept only when, with the placement, it brings
 /// the limb's nodes nearer the target's points and the target limb's points
 /// (BranchGuide::target_support) nearer the limb's nodes. The trunk and the limbs not turned

@@ -223,6 +223,7 @@ TemplateArtifact LoadTemplateArtifact(const std::filesystem::path& path) {
   m.graph.bridges = ToPairs(bridges);
   m.vertex_weights = GetWeights(r, "vertex_weights", nv, nn);
   m.terminal_weights = GetWeights(r, "terminal_weights", m.features.num_terminals(), nn);
+  m.limbs = MakeTemplateLimbs(m);
 
   io::Annotations& an = a.annotations;
   an.template_name = r.String("annotations.template");

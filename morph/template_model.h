@@ -2,6 +2,7 @@
 
 #include <Eigen/Core>
 #include <string>
+#include <vector>
 
 #include "geometry/triangle_mesh.h"
 #include "morph/deformation_graph.h"
@@ -24,6 +25,29 @@ struct TemplateModelOptions {
   DeformationGraphOptions graph;
 };
 
+/// The template's limbs (TerminalBranches of its skeleton), each sampled at kSamples evenly
+/// spaced arc lengths from its root to its tip, and the limb each vertex and graph node lies
+/// on: what the posture fit's branch pulls, TurnLimbs and SwingLimbs read of the template.
+/// Derived from the model's skeleton, features, graph and weights (MakeTemplateLimbs) when it
+/// is built or loaded; not stored.
+struct TemplateLimbs {
+  static constexpr int kSamples = 21;
+  /// Normalised frame: kSamples columns per limb, root first.
+  Eigen::Matrix3Xd rest;
+  NodeWeights weights;         ///< eq. (10) weights of those points
+  std::vector<double> length;  ///< per limb, template sizes
+  /// Per deformation-graph node: the limb it lies on (-1: the trunk, or a root).
+  std::vector<int> node_branch;
+  /// Per template vertex: the limb it lies on (-1: the trunk).
+  std::vector<int> vertex_branch;
+  /// Per template vertex on a limb: how far out along its limb the skeleton node that stands
+  /// for it lies, a fraction of the limb's length (0 on the trunk).
+  std::vector<double> vertex_along;
+  /// Per deformation-graph node, likewise (its vertex's).
+  std::vector<double> node_along;
+  int num_branches() const { return static_cast<int>(length.size()); }
+};
+
 /// Everything about a template that does not depend on the target, computed once (offline,
 /// then loaded by the daemon): libigl's precomputation half. All positions are in the
 /// template's normalised frame, x_hat = (x - centre) / size, so every threshold is
@@ -38,6 +62,7 @@ struct TemplateModel {
   DeformationGraph graph;       ///< on the normalised mesh
   NodeWeights vertex_weights;
   NodeWeights terminal_weights;
+  TemplateLimbs limbs;   ///< derived from the above (MakeTemplateLimbs)
   double seconds = 0.0;  ///< time to build
 
   Eigen::Vector3d Normalise(const Eigen::Vector3d& x) const { return (x - centre) / size; }
@@ -54,5 +79,10 @@ TemplateModelOptions::FeatureSource FeatureSourceNamed(const std::string& name,
 
 TemplateModel BuildTemplateModel(const geometry::TriangleMesh& mesh,
                                  const TemplateModelOptions& options = {});
+
+/// @p model's limbs, from its skeleton, features, graph, vertex weights and V. A vertex, and
+/// so a graph node, lies on the limb whose skeleton nodes (its root's left out) stand for it;
+/// one two limbs share goes to the first.
+TemplateLimbs MakeTemplateLimbs(const TemplateModel& model);
 
 }  // namespace vb::morph

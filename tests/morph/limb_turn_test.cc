@@ -245,17 +245,17 @@ TEST_F(RaisedArmTest, SwingsAnArmTheFitCurledInItsRestShape) {
   // The template branch the left arm's vertices lie on.
   std::vector<int> votes(static_cast<std::size_t>(guide.num_template_branches()), 0);
   for (int i : *arm_) {
-    const int b = guide.vertex_branch[static_cast<std::size_t>(i)];
+    const int b = guide.limbs->vertex_branch[static_cast<std::size_t>(i)];
     if (b >= 0) ++votes[static_cast<std::size_t>(b)];
   }
   const int arm = static_cast<int>(std::max_element(votes.begin(), votes.end()) - votes.begin());
   ASSERT_GT(votes[static_cast<std::size_t>(arm)], 50);
   // That limb curled outwards into an arc of 120 degrees from its root, as a fit that laid it
   // along a neighbour can leave it: swung as posed, the arc cannot lie along the straight arm.
-  const Eigen::Vector3d root = guide.template_rest.col(BranchGuide::Column(arm, 0));
+  const Eigen::Vector3d root = guide.limbs->rest.col(BranchGuide::Column(arm, 0));
   const Eigen::Vector3d down(0, 0, -1), out(1, 0, 0);
   const double curvature =
-      (2.0 * std::numbers::pi / 3.0) / guide.template_length[static_cast<std::size_t>(arm)];
+      (2.0 * std::numbers::pi / 3.0) / guide.limbs->length[static_cast<std::size_t>(arm)];
   DeformationState start = DeformationState::Identity(model_->graph.num_nodes());
   const auto set = [&](int j, const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
     start.set_rotation(j, R);
@@ -264,7 +264,7 @@ TEST_F(RaisedArmTest, SwingsAnArmTheFitCurledInItsRestShape) {
   int curled = 0;
   for (int j = 0; j < model_->graph.num_nodes(); ++j) {
     const Eigen::Vector3d g = model_->graph.nodes.col(j);
-    if (guide.node_branch[static_cast<std::size_t>(j)] != arm) {
+    if (guide.limbs->node_branch[static_cast<std::size_t>(j)] != arm) {
       set(j, Q, Q * g + c - g);
       continue;
     }

@@ -60,6 +60,11 @@ TEST_F(TemplateArtifactTest, MorphFromTheLoadedArtifactEqualsMorphFromTheBuiltMo
   EXPECT_EQ(back.model.graph.num_nodes(), model_->graph.num_nodes());
   EXPECT_EQ(back.model.graph.nodes, model_->graph.nodes);
   EXPECT_EQ(back.model.V, model_->V);
+  // The limbs are not stored but derived again on load.
+  ASSERT_GT(model_->limbs.num_branches(), 0);
+  EXPECT_EQ(back.model.limbs.rest, model_->limbs.rest);
+  EXPECT_EQ(back.model.limbs.node_branch, model_->limbs.node_branch);
+  EXPECT_EQ(back.model.limbs.vertex_along, model_->limbs.vertex_along);
   ASSERT_EQ(back.annotations.cuts.size(), carcass_->annotations.cuts.size());
   EXPECT_EQ(back.annotations.cuts[1].line.size(), carcass_->annotations.cuts[1].line.size());
   EXPECT_EQ(back.annotations.parts, carcass_->annotations.parts);
