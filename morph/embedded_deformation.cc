@@ -281,9 +281,14 @@ class Problem {
   }
 
  private:
+  // Every pair of nodes a term couples (repeats kept), with room for BlockMatrix's diagonal.
   static std::vector<std::array<int, 2>> CoupledPairs(
       const DeformationGraph& graph, std::span<const PointConstraint> constraints) {
+    std::size_t count =
+        DirectedEdges(graph) + graph.bridges.size() + static_cast<std::size_t>(graph.num_nodes());
+    for (const PointConstraint& c : constraints) count += c.nodes.size() * c.nodes.size() / 2;
     std::vector<std::array<int, 2>> pairs;
+    pairs.reserve(count);
     for (const PointConstraint& c : constraints)
       for (std::size_t a = 0; a < c.nodes.size(); ++a)
         for (std::size_t b = a + 1; b < c.nodes.size(); ++b)
