@@ -115,12 +115,19 @@ struct Search {
     const double per_dof = cost / static_cast<double>(std::max<Eigen::Index>(1, 3 * n - 7)) + 1e-12;
     cost = per_dof * std::pow(2.0, terminal_skips + junction_skips);
     if (best.size() == keep && cost >= best.back().cost) return;
-    Candidate c{cost, a_slots, assignment, fit};
-    best.insert(
-        std::upper_bound(best.begin(), best.end(), c,
-                         [](const Candidate& x, const Candidate& y) { return x.cost < y.cost; }),
-        std::move(c));
-    if (best.size() > keep) best.pop_back();
+    const auto at = static_cast<std::ptrdiff_t>(
+        std::upper_bound(best.begin(), best.end(), cost,
+                         [](double c, const Candidate& y) { return c < y.cost; }) -
+        best.begin());
+    // A full list's last candidate drops out: its lists take the new one's, which then moves
+    // to its place (no allocation once the list is full).
+    if (best.size() < keep) best.emplace_back();
+    Candidate& slot = best.back();
+    slot.cost = cost;
+    slot.slots.assign(a_slots.begin(), a_slots.end());
+    slot.assignment.assign(assignment.begin(), assignment.end());
+    slot.fit = fit;
+    std::rotate(best.begin() + at, best.end() - 1, best.end());
   }
 
   void Recurse(std::size_t depth) {
@@ -233,6 +240,7 @@ std::vector<Association> AssociateFeatureNodes(const FeatureNodes& from_in,
   s.a_terminals = fa.num_terminals();
   s.b_terminals = fb.num_terminals();
   s.keep = static_cast<std::size_t>(std::max(1, options.keep_best));
+  s.best.reserve(s.keep);
   s.options = &options;
   for (int i = 0; i < fa.num_terminals(); ++i) s.a_slots.push_back(i);
   // Junctions: pair all of a's if it has no more than b; otherwise only as many as b has,

@@ -21,9 +21,11 @@ std::vector<SkeletonBranch> TerminalBranches(const SkeletonGraph& skeleton,
   std::vector<SkeletonBranch> branches;
   const int n = skeleton.num_nodes();
   if (n == 0 || features.num_junctions() == 0) return branches;
+  // Edges kept in a vector (the last vecS), not one list node each.
   using Graph =
       boost::adjacency_list<boost::vecS, boost::vecS, boost::undirectedS, boost::no_property,
-                            boost::property<boost::edge_weight_t, double>>;
+                            boost::property<boost::edge_weight_t, double>, boost::no_property,
+                            boost::vecS>;
   Graph graph(static_cast<std::size_t>(n));
   for (const auto& e : skeleton.edges) {
     if (e[0] == e[1]) continue;

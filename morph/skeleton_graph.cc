@@ -46,13 +46,14 @@ FeatureNodes ExtractFeatureNodes(const SkeletonGraph& skeleton, const FeatureOpt
 
   // Prune: walk from each terminal to the first node of degree >= 3; if that branch is
   // short, remove it (not the junction). Repeat until nothing changes, shortest first.
+  std::vector<int> branch, shortest_branch;  // reused from walk to walk
   for (bool changed = true; changed;) {
     changed = false;
     double shortest = options.min_branch_length;
-    std::vector<int> shortest_branch;
+    shortest_branch.clear();
     for (int t = 0; t < n; ++t) {
       if (!alive[static_cast<std::size_t>(t)] || adjacency.degree(t, alive) != 1) continue;
-      std::vector<int> branch = {t};
+      branch.assign(1, t);
       double length = 0.0;
       int previous = -1, current = t;
       while (true) {
@@ -99,12 +100,13 @@ FeatureNodes ExtractFeatureNodes(const SkeletonGraph& skeleton, const FeatureOpt
     if (d >= 3) junctions.push_back(v);
   }
   boost::disjoint_sets_with_storage<> group(junctions.size());
+  // Reused from junction to junction (each search leaves the queue empty).
+  std::vector<double> distance;
+  using Item = std::pair<double, int>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;
   for (std::size_t a = 0; a < junctions.size(); ++a) {
     // Bounded Dijkstra from junction a over the living skeleton.
-    std::vector<double> distance(static_cast<std::size_t>(n),
-                                 std::numeric_limits<double>::infinity());
-    using Item = std::pair<double, int>;
-    std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;
+    distance.assign(static_cast<std::size_t>(n), std::numeric_limits<double>::infinity());
     distance[static_cast<std::size_t>(junctions[a])] = 0.0;
     queue.push({0.0, junctions[a]});
     while (!queue.empty()) {
