@@ -160,7 +160,14 @@ struct Search {
   }
 };
 
-Eigen::Matrix3Xd Stack(const FeatureNodes& f) {
+// The feature nodes' positions, which are all the search reads of them.
+struct NodePositions {
+  Eigen::Matrix3Xd terminals, junctions;
+  int num_terminals() const { return static_cast<int>(terminals.cols()); }
+  int num_junctions() const { return static_cast<int>(junctions.cols()); }
+};
+
+Eigen::Matrix3Xd Stack(const NodePositions& f) {
   Eigen::Matrix3Xd all(3, f.num_terminals() + f.num_junctions());
   all << f.terminals, f.junctions;
   return all;
@@ -172,11 +179,11 @@ double Permutations(int n, int k) {
   return p;
 }
 
-// Keeps @p keep columns of @p points (and their support), ordered by distance to @p centre,
-// farthest first when @p farthest: limb ends are the most telling terminals, central nodes
-// the most reliable junctions.
+// Keeps @p keep columns of @p points, ordered by distance to @p centre, farthest first when
+// @p farthest: limb ends are the most telling terminals, central nodes the most reliable
+// junctions.
 void KeepByDistance(const Eigen::Vector3d& centre, int keep, bool farthest,
-                    Eigen::Matrix3Xd* points, std::vector<std::vector<int>>* support) {
+                    Eigen::Matrix3Xd* points) {
   if (points->cols() <= keep) return;
   std::vector<int> order(static_cast<std::size_t>(points->cols()));
   for (int i = 0; i < points->cols(); ++i) order[static_cast<std::size_t>(i)] = i;
@@ -186,14 +193,8 @@ void KeepByDistance(const Eigen::Vector3d& centre, int keep, bool farthest,
     return farthest ? dx > dy : dx < dy;
   });
   Eigen::Matrix3Xd kept(3, keep);
-  std::vector<std::vector<int>> kept_support;
-  for (int i = 0; i < keep; ++i) {
-    const auto source = static_cast<std::size_t>(order[static_cast<std::size_t>(i)]);
-    kept.col(i) = points->col(static_cast<Eigen::Index>(source));
-    if (source < support->size()) kept_support.push_back((*support)[source]);
-  }
+  for (int i = 0; i < keep; ++i) kept.col(i) = points->col(order[static_cast<std::size_t>(i)]);
   *points = std::move(kept);
-  *support = std::move(kept_support);
 }
 
 }  // namespace
@@ -201,7 +202,7 @@ void KeepByDistance(const Eigen::Vector3d& centre, int keep, bool farthest,
 std::vector<Association> AssociateFeatureNodes(const FeatureNodes& from_in,
                                                const FeatureNodes& to_in,
                                                const AssociationOptions& options) {
-  FeatureNodes from = from_in, to = to_in;
+  NodePositions from{from_in.terminals, from_in.junctions}, to{to_in.terminals, to_in.junctions};
   auto count = [&]() {
     // Pairings, times the ways of leaving one terminal and one junction out.
     const int t = std::min(from.num_terminals(), to.num_terminals());
@@ -211,14 +212,14 @@ std::vector<Association> AssociateFeatureNodes(const FeatureNodes& from_in,
   };
   // Trim the larger side first: terminals down to four, then junctions down to one.
   while (count() > static_cast<double>(options.max_candidates)) {
-    FeatureNodes& larger_t = from.num_terminals() >= to.num_terminals() ? from : to;
-    FeatureNodes& larger_j = from.num_junctions() >= to.num_junctions() ? from : to;
+    NodePositions& larger_t = from.num_terminals() >= to.num_terminals() ? from : to;
+    NodePositions& larger_j = from.num_junctions() >= to.num_junctions() ? from : to;
     if (larger_t.num_terminals() > 4) {
       KeepByDistance(Stack(larger_t).rowwise().mean(), larger_t.num_terminals() - 1, true,
-                     &larger_t.terminals, &larger_t.terminal_support);
+                     &larger_t.terminals);
     } else if (larger_j.num_junctions() > 1) {
       KeepByDistance(Stack(larger_j).rowwise().mean(), larger_j.num_junctions() - 1, false,
-                     &larger_j.junctions, &larger_j.junction_support);
+                     &larger_j.junctions);
     } else {
       break;  // at most 4! * 5 * 2 pairings: small
     }
@@ -233,8 +234,8 @@ std::vector<Association> AssociateFeatureNodes(const FeatureNodes& from_in,
   // side with fewer terminals and every junction of `a` is paired when it has fewer too.
   Search s;
   s.a_is_from = from.num_terminals() <= to.num_terminals();
-  const FeatureNodes& fa = s.a_is_from ? from : to;
-  const FeatureNodes& fb = s.a_is_from ? to : from;
+  const NodePositions& fa = s.a_is_from ? from : to;
+  const NodePositions& fb = s.a_is_from ? to : from;
   s.a = Stack(fa);
   s.b = Stack(fb);
   s.a_terminals = fa.num_terminals();
@@ -282,6 +283,7 @@ std::vector<Association> AssociateFeatureNodes(const FeatureNodes& from_in,
     }
     return i;
   };
+  results.reserve(s.best.size());
   for (const Search::Candidate& c : s.best) {
     Association result;
     result.ok = true;
