@@ -231,6 +231,7 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
   std::vector<int> found;
   std::vector<double> found_distances;
   double stiffness = options.stiffness_start;
+  DeformationScratch scratch;  // one for every round's solve
   for (int round = 0; round < options.rounds; ++round) {
     const Eigen::Matrix3Xd posed = DeformPoints(model.graph, weights, rest, result.state);
     const PointIndex posed_index(posed);
@@ -317,7 +318,7 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
     deformation.w_rig *= stiffness;
     DeformationState next = result.state;
     const SolveSummary solve =
-        SolveEmbeddedDeformation(model.graph, constraints, deformation, &next);
+        SolveEmbeddedDeformation(model.graph, constraints, deformation, &next, {}, &scratch);
     if (!solve.usable) break;
     result.state = std::move(next);
     result.rounds = round + 1;

@@ -209,6 +209,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     }
     return FilterAssociations(a1, a2, options.filter);
   };
+  DeformationScratch scratch;  // one for every round's solve
   for (int round = 0; round < options.rounds; ++round) {
     if (options.unbias_plane_points) curvature = geometry::CurvatureSums(posed, posed.N);
     DenseRound info;
@@ -277,8 +278,8 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     deformation.w_reg *= stiffness;
     deformation.w_data *= noise_factor * static_cast<double>(model.graph.num_nodes()) /
                           static_cast<double>(constraints.size());
-    info.deformation =
-        SolveEmbeddedDeformation(model.graph, constraints, deformation, &result.state, kept_bends);
+    info.deformation = SolveEmbeddedDeformation(model.graph, constraints, deformation,
+                                                &result.state, kept_bends, &scratch);
     result.rounds.push_back(info);
     if (!info.deformation.usable) {
       result.error = "surface embedded deformation failed: " + info.deformation.message;

@@ -59,15 +59,18 @@ auto TranslationOf(Eigen::VectorXd& x, int j) { return x.segment<3>(kB * j + 9);
 // pairs, not with the square of the node count.
 class BlockMatrix {
  public:
-  // @p pairs: node pairs, either order, repeats allowed; every diagonal block is added.
-  BlockMatrix(int n, std::vector<std::array<int, 2>> pairs)
-      : n_(n), row_start_(static_cast<std::size_t>(n) + 1, 0) {
-    for (auto& [i, j] : pairs)
+  BlockMatrix() = default;
+  // Zero blocks for the node pairs in @p pairs (either order, repeats allowed) and every
+  // diagonal block, on @p n nodes; @p pairs is left reordered. Reuses the matrix's storage.
+  void Reset(int n, std::vector<std::array<int, 2>>* pairs) {
+    n_ = n;
+    for (auto& [i, j] : *pairs)
       if (i > j) std::swap(i, j);
-    for (int i = 0; i < n; ++i) pairs.push_back({i, i});
-    std::sort(pairs.begin(), pairs.end());
-    pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
-    pairs_ = std::move(pairs);
+    for (int i = 0; i < n; ++i) pairs->push_back({i, i});
+    std::sort(pairs->begin(), pairs->end());
+    pairs->erase(std::unique(pairs->begin(), pairs->end()), pairs->end());
+    pairs_.assign(pairs->begin(), pairs->end());
+    row_start_.assign(static_cast<std::size_t>(n) + 1, 0);
     for (const auto& [i, j] : pairs_) ++row_start_[static_cast<std::size_t>(i) + 1];
     for (std::size_t i = 0; i < static_cast<std::size_t>(n); ++i)
       row_start_[i + 1] += row_start_[i];
@@ -108,7 +111,7 @@ class BlockMatrix {
     VB_DEMAND(it != last && (*it)[1] == j);
     return static_cast<std::size_t>(it - pairs_.begin());
   }
-  int n_;
+  int n_ = 0;
   std::vector<int> row_start_;  // per node, its first pair; then the pair count
   std::vector<std::array<int, 2>> pairs_;
   std::vector<Block> blocks_;
@@ -164,14 +167,20 @@ struct RigidityTerm {
 // in x (the data terms and E_reg) give the same J^T J everywhere; it is assembled once.
 class Problem {
  public:
+  // J^T J's linear part is assembled into @p linear, the coupled pairs listed in @p pairs
+  // (both reused: nothing allocated once they have held a problem as large).
   Problem(const DeformationGraph& graph, std::span<const PointConstraint> constraints,
-          const EmbeddedDeformationOptions& options, std::span<const Eigen::Vector3d> kept_bends)
+          const EmbeddedDeformationOptions& options, std::span<const Eigen::Vector3d> kept_bends,
+          BlockMatrix* linear, std::vector<std::array<int, 2>>* pairs)
       : graph_(graph),
         constraints_(constraints),
         options_(options),
         kept_bends_(kept_bends),
         n_(graph.num_nodes()),
-        linear_((Demand(graph, constraints, kept_bends), n_), CoupledPairs(graph, constraints)) {
+        linear_(*linear) {
+    Demand(graph, constraints, kept_bends);
+    CoupledPairs(graph, constraints, pairs);
+    linear_.Reset(n_, pairs);
     AssembleLinear();
   }
 
@@ -281,22 +290,23 @@ class Problem {
   }
 
  private:
-  // Every pair of nodes a term couples (repeats kept), with room for BlockMatrix's diagonal.
-  static std::vector<std::array<int, 2>> CoupledPairs(
-      const DeformationGraph& graph, std::span<const PointConstraint> constraints) {
+  // Every pair of nodes a term couples (repeats kept) into @p pairs, with room for
+  // BlockMatrix's diagonal.
+  static void CoupledPairs(const DeformationGraph& graph,
+                           std::span<const PointConstraint> constraints,
+                           std::vector<std::array<int, 2>>* pairs) {
     std::size_t count =
         DirectedEdges(graph) + graph.bridges.size() + static_cast<std::size_t>(graph.num_nodes());
     for (const PointConstraint& c : constraints) count += c.nodes.size() * c.nodes.size() / 2;
-    std::vector<std::array<int, 2>> pairs;
-    pairs.reserve(count);
+    pairs->clear();
+    pairs->reserve(count);
     for (const PointConstraint& c : constraints)
       for (std::size_t a = 0; a < c.nodes.size(); ++a)
         for (std::size_t b = a + 1; b < c.nodes.size(); ++b)
-          pairs.push_back({c.nodes[a], c.nodes[b]});
+          pairs->push_back({c.nodes[a], c.nodes[b]});
     for (int i = 0; i < graph.num_nodes(); ++i)
-      for (int j : graph.neighbours[static_cast<std::size_t>(i)]) pairs.push_back({i, j});
-    for (const auto& [j, k] : graph.bridges) pairs.push_back({j, k});
-    return pairs;
+      for (int j : graph.neighbours[static_cast<std::size_t>(i)]) pairs->push_back({i, j});
+    for (const auto& [j, k] : graph.bridges) pairs->push_back({j, k});
   }
 
   // J^T J of the data terms and E_reg. A data row e . (sum_k w_k (R_k d_k + g_k + t_k)) has,
@@ -305,7 +315,9 @@ class Problem {
     // A plane row's per-node vectors, as columns; sized once for the most nodes a point has.
     std::size_t most_nodes = 0;
     for (const PointConstraint& c : constraints_) most_nodes = std::max(most_nodes, c.nodes.size());
-    Eigen::Matrix<double, kB, Eigen::Dynamic> u(kB, static_cast<Eigen::Index>(most_nodes));
+    VB_DEMAND(most_nodes <= static_cast<std::size_t>(kMaxNodesPerPoint));
+    Eigen::Matrix<double, kB, Eigen::Dynamic, Eigen::ColMajor, kB, kMaxNodesPerPoint> u(
+        kB, static_cast<Eigen::Index>(most_nodes));
     for (const PointConstraint& c : constraints_) {
       const double s2 = options_.w_data * c.weight;
       const std::size_t m = c.nodes.size();
@@ -373,17 +385,18 @@ class Problem {
   const EmbeddedDeformationOptions& options_;
   std::span<const Eigen::Vector3d> kept_bends_;
   int n_;
-  BlockMatrix linear_;
+  BlockMatrix& linear_;
 };
 
 // SolveBlockCg's buffers, sized once per solve and reused by every Levenberg-Marquardt step.
 struct CgScratch {
-  explicit CgScratch(int num_nodes)
-      : inverse(static_cast<std::size_t>(num_nodes)),
-        r(kB * num_nodes),
-        z(kB * num_nodes),
-        p(kB * num_nodes),
-        Ap(kB * num_nodes) {}
+  void Resize(int num_nodes) {
+    inverse.resize(static_cast<std::size_t>(num_nodes));
+    r.resize(kB * num_nodes);
+    z.resize(kB * num_nodes);
+    p.resize(kB * num_nodes);
+    Ap.resize(kB * num_nodes);
+  }
   std::vector<Block> inverse;  // per node, its damped diagonal block's inverse
   Eigen::VectorXd r, z, p, Ap;
 };
@@ -472,16 +485,30 @@ void DeformationState::set_rotation(int j, const Eigen::Matrix3d& A) {
 
 namespace {
 
-Eigen::VectorXd Pack(const DeformationState& state) {
-  Eigen::VectorXd x(kB * static_cast<Eigen::Index>(state.R.size()));
+void Pack(const DeformationState& state, Eigen::VectorXd* x) {
+  x->resize(kB * static_cast<Eigen::Index>(state.R.size()));
   for (std::size_t j = 0; j < state.R.size(); ++j) {
-    x.segment<9>(kB * static_cast<Eigen::Index>(j)) = state.R[j];
-    x.segment<3>(kB * static_cast<Eigen::Index>(j) + 9) = state.t[j];
+    x->segment<9>(kB * static_cast<Eigen::Index>(j)) = state.R[j];
+    x->segment<3>(kB * static_cast<Eigen::Index>(j) + 9) = state.t[j];
   }
-  return x;
 }
 
 }  // namespace
+
+struct DeformationScratch::Storage {
+  std::vector<std::array<int, 2>> pairs;
+  BlockMatrix linear, jtj;
+  Eigen::VectorXd x, gradient, next_gradient, damping, rhs, step, Hstep, next, undamped;
+  CgScratch cg;
+};
+
+DeformationScratch::DeformationScratch() : storage_(std::make_unique<Storage>()) {}
+DeformationScratch::~DeformationScratch() = default;
+
+// Reaches a DeformationScratch's storage for the functions below.
+struct DeformationSolve {
+  static DeformationScratch::Storage& Of(DeformationScratch* scratch) { return *scratch->storage_; }
+};
 
 std::vector<Eigen::Vector3d> KeptBends(const DeformationGraph& graph, const DeformationState& pose,
                                        double free_bend) {
@@ -511,31 +538,47 @@ double EmbeddedDeformationEnergy(const DeformationGraph& graph,
                                  std::span<const Eigen::Vector3d> kept_bends) {
   VB_DEMAND(static_cast<int>(state.R.size()) == graph.num_nodes() &&
             static_cast<int>(state.t.size()) == graph.num_nodes());
-  return Problem(graph, constraints, options, kept_bends).Cost(Pack(state), gradient);
+  DeformationScratch scratch;
+  auto& s = DeformationSolve::Of(&scratch);
+  Pack(state, &s.x);
+  return Problem(graph, constraints, options, kept_bends, &s.linear, &s.pairs).Cost(s.x, gradient);
 }
 
 SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
                                       std::span<const PointConstraint> constraints,
                                       const EmbeddedDeformationOptions& options,
                                       DeformationState* state,
-                                      std::span<const Eigen::Vector3d> kept_bends) {
+                                      std::span<const Eigen::Vector3d> kept_bends,
+                                      DeformationScratch* scratch) {
   VB_DEMAND(static_cast<int>(state->R.size()) == graph.num_nodes() &&
             static_cast<int>(state->t.size()) == graph.num_nodes());
   const auto start = std::chrono::steady_clock::now();
   SolveSummary out;
-  const auto finish = [&](std::string message) {
-    out.message = std::move(message);
+  // Ends the solve (called once, last): the summary moves out.
+  const auto finish = [&](const char* message) {
+    out.message = message;
     out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    return out;
+    return std::move(out);
   };
   if (options.deadline.Passed()) return finish("past the morph's deadline");
   const int n = graph.num_nodes();
   const Eigen::Index size = static_cast<Eigen::Index>(kB) * n;
-  Problem problem(graph, constraints, options, kept_bends);
+  std::unique_ptr<DeformationScratch> own;
+  if (scratch == nullptr) {
+    own = std::make_unique<DeformationScratch>();
+    scratch = own.get();
+  }
+  auto& s = DeformationSolve::Of(scratch);
+  Problem problem(graph, constraints, options, kept_bends, &s.linear, &s.pairs);
 
-  Eigen::VectorXd x = Pack(*state);
-  Eigen::VectorXd gradient(size), next_gradient(size);
-  BlockMatrix jtj = problem.linear();
+  Eigen::VectorXd& x = s.x;
+  Pack(*state, &x);
+  Eigen::VectorXd& gradient = s.gradient;
+  Eigen::VectorXd& next_gradient = s.next_gradient;
+  gradient.resize(size);
+  next_gradient.resize(size);
+  BlockMatrix& jtj = s.jtj;
+  jtj = problem.linear();
   double cost = problem.Cost(x, &gradient);
   out.initial_cost = cost;
   if (!std::isfinite(cost)) return finish("the initial cost is not finite");
@@ -550,10 +593,17 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
   // grows by 2, 4, 8, ...
   double mu = 1e-4;
   double nu = 2.0;
-  Eigen::VectorXd damping(size), rhs(size), step(size), Hstep(size), next(size);
-  const Eigen::VectorXd undamped = Eigen::VectorXd::Zero(size);
-  CgScratch cg(n);
-  std::string stop = "maximum iterations";
+  Eigen::VectorXd& damping = s.damping;
+  Eigen::VectorXd& rhs = s.rhs;
+  Eigen::VectorXd& step = s.step;
+  Eigen::VectorXd& Hstep = s.Hstep;
+  Eigen::VectorXd& next = s.next;
+  for (Eigen::VectorXd* v : {&damping, &rhs, &step, &Hstep, &next}) v->resize(size);
+  s.undamped.setZero(size);
+  const Eigen::VectorXd& undamped = s.undamped;
+  CgScratch& cg = s.cg;
+  cg.Resize(n);
+  const char* stop = "maximum iterations";
   int iteration = 0;
   for (; iteration < options.max_iterations; ++iteration) {
     if (options.deadline.Passed()) break;

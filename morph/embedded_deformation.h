@@ -4,6 +4,7 @@
 #include <atomic>
 #include <boost/container/small_vector.hpp>
 #include <chrono>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -87,6 +88,23 @@ struct SolveSummary {
   std::string message;
 };
 
+/// What SolveEmbeddedDeformation keeps from one solve to the next: J^T J's blocks, its
+/// vectors and the conjugate gradients', grown to the largest problem solved with it. Given
+/// one, a solve of a problem no larger allocates nothing for them. One per thread: a scratch
+/// is not for two solves at once.
+class DeformationScratch {
+ public:
+  DeformationScratch();
+  ~DeformationScratch();
+  DeformationScratch(const DeformationScratch&) = delete;
+  DeformationScratch& operator=(const DeformationScratch&) = delete;
+
+ private:
+  friend struct DeformationSolve;
+  struct Storage;
+  std::unique_ptr<Storage> storage_;
+};
+
 /// Minimises w_data E_data + w_rot E_rot (6) + w_reg E_reg (7) + w_rig E_rig (8) over the
 /// node transforms by Levenberg-Marquardt, starting from @p state. J^T J is kept as one
 /// 12 x 12 block per pair of nodes some term couples; the terms linear in the transforms
@@ -100,11 +118,13 @@ struct SolveSummary {
 /// With @p kept_bends (KeptBends), E_reg measures each residual from its kept bend instead of
 /// from zero; empty: from zero, the template's rest shape.
 /// @pre kept_bends is empty or has one entry per E_reg residual, in KeptBends' order.
+/// @param scratch reused when given (DeformationScratch); the result does not depend on it.
 SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
                                       std::span<const PointConstraint> constraints,
                                       const EmbeddedDeformationOptions& options,
                                       DeformationState* state,
-                                      std::span<const Eigen::Vector3d> kept_bends = {});
+                                      std::span<const Eigen::Vector3d> kept_bends = {},
+                                      DeformationScratch* scratch = nullptr);
 
 /// The bends of @p pose that E_reg (eq. 7) is to keep, in the graph's units (template sizes):
 /// per E_reg residual (node i = 0, 1, ..., then each neighbour j in
