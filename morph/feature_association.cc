@@ -291,6 +291,8 @@ std::vector<Association> AssociateFeatureNodes(const FeatureNodes& from_in,
     result.pruned = s.pruned;
     result.from_to = c.fit;
     result.rms_residual = std::sqrt(c.cost);  // per degree of freedom
+    result.terminals.reserve(static_cast<std::size_t>(fa.num_terminals()));
+    result.junctions.reserve(c.slots.size() - static_cast<std::size_t>(fa.num_terminals()));
     for (std::size_t k = 0; k < c.slots.size(); ++k) {
       const int ia = c.slots[k], ib = c.assignment[k];
       if (ib < 0) continue;

@@ -130,7 +130,7 @@ TEST(MorphAllocationsTest, ASolveWithAWarmScratchAllocatesOnlyItsMessage) {
 
 using MorphAllocationsLambTest = test::LambTemplateTest;
 
-// A whole morph of a lamb cloud (18,712 points) on a warm Morpher: measured 5,017
+// A whole morph of a lamb cloud (18,712 points) on a warm Morpher: measured 4,773
 // allocations (docs/decisions.md has the steps that brought it there, and where the rest
 // are made). Under AddressSanitizer only operator new is counted (not Eigen's malloc), so
 // there the ceiling holds loosely.
