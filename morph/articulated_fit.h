@@ -153,7 +153,7 @@ BranchGuide MakeBranchGuide(const TemplateModel& model, const SkeletonGraph& tar
 /// Branch pairs (template, target) that are each other's cheapest: the cost is the distance
 /// between their roots plus that between their points @p along their lengths out, within
 /// options.branch_radius, for lengths within options.branch_max_ratio of each other.
-/// @param[in] posed the template's branch samples (BranchGuide::template_rest, as posed).
+/// @param[in] posed the template's branch samples (TemplateLimbs::rest, as posed).
 /// @param[in] target the target's branch samples brought into the template's frame.
 /// @param scale target units per template size.
 std::vector<std::pair<int, int>> PairBranches(const BranchGuide& guide,

@@ -27,12 +27,12 @@ double Since(std::chrono::steady_clock::time_point start) {
 // How badly the template, placed by `fit`, and the target disagree as surfaces: the mean of
 // closest-point distances both ways between a few hundred samples of each. A target sample's
 // nearest placed template sample is looked up in the template's frame (@p template_index over
-// @p template_samples), where `fit` keeps which sample is nearest, so nothing is built per
-// placement.
+// @p template_samples), where `fit` keeps which sample is nearest up to rounding (a near tie
+// may go to the other), so nothing is built per placement.
 double SurfaceDisagreement(const Eigen::Matrix3Xd& template_samples,
-                           const PointIndex& template_index,
-                           const Eigen::Matrix3Xd& target_samples, const PointIndex& target_index,
-                           const Eigen::Matrix3Xd& target, const Similarity& fit) {
+                           const PointIndex& template_index, const Eigen::Matrix3Xd& target_samples,
+                           const PointIndex& target_index, const Eigen::Matrix3Xd& target,
+                           const Similarity& fit) {
   double sum = 0.0;
   for (Eigen::Index i = 0; i < template_samples.cols(); ++i) {
     const Eigen::Vector3d placed = fit(template_samples.col(i));
@@ -257,8 +257,8 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
       const Similarity refined = RefineSimilarity(template_samples, target_index, target,
                                                   candidates[k].from_to, options.refine_iterations);
       if (!refined.Usable() || !association.AcceptsOrientation(refined.R)) return;
-      const double d =
-          SurfaceDisagreement(template_samples, template_index, target_samples, target_index, target, refined);
+      const double d = SurfaceDisagreement(template_samples, template_index, target_samples,
+                                           target_index, target, refined);
       if (d < disagreements[k]) {
         candidates[k].from_to = refined;
         disagreements[k] = d;
@@ -276,8 +276,8 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
       (*refined)[k] = RefineSimilarity(template_samples, target_index, target, starts[k],
                                        options.refine_iterations);
       if (!(*refined)[k].Usable() || !association.AcceptsOrientation((*refined)[k].R)) return;
-      (*disagreement)[k] = SurfaceDisagreement(template_samples, template_index, target_samples, target_index,
-                                               target, (*refined)[k]);
+      (*disagreement)[k] = SurfaceDisagreement(template_samples, template_index, target_samples,
+                                               target_index, target, (*refined)[k]);
     });
   };
   // A candidate placed by from_to, with the skeleton search's counts for the report.
@@ -537,9 +537,8 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   // rigid placement did.
   if (options.check_deformation && !constraints.empty()) {
     const Eigen::Matrix3Xd posed_samples = EveryNth(posed, options.verification_samples);
-    const double deformed =
-        SurfaceDisagreement(posed_samples, PointIndex(posed_samples), target_samples,
-                            target_index, target, to_target);
+    const double deformed = SurfaceDisagreement(posed_samples, PointIndex(posed_samples),
+                                                target_samples, target_index, target, to_target);
     result.deformation_kept = deformed <= result.disagreement * to_target.scale;
     if (!result.deformation_kept) {
       result.state = DeformationState::Identity(model.graph.num_nodes());

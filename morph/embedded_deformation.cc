@@ -167,17 +167,20 @@ struct RigidityTerm {
 // in x (the data terms and E_reg) give the same J^T J everywhere; it is assembled once.
 class Problem {
  public:
-  // J^T J's linear part is assembled into @p linear, the coupled pairs listed in @p pairs
-  // (both reused: nothing allocated once they have held a problem as large).
+  // J^T J's linear part is assembled into @p linear, the coupled pairs listed in @p pairs and
+  // a plane row's per-node vectors put in @p plane_rows (all reused: nothing allocated once
+  // they have held a problem as large).
   Problem(const DeformationGraph& graph, std::span<const PointConstraint> constraints,
           const EmbeddedDeformationOptions& options, std::span<const Eigen::Vector3d> kept_bends,
-          BlockMatrix* linear, std::vector<std::array<int, 2>>* pairs)
+          BlockMatrix* linear, std::vector<std::array<int, 2>>* pairs,
+          Eigen::Matrix<double, kB, Eigen::Dynamic>* plane_rows)
       : graph_(graph),
         constraints_(constraints),
         options_(options),
         kept_bends_(kept_bends),
         n_(graph.num_nodes()),
-        linear_(*linear) {
+        linear_(*linear),
+        plane_rows_(*plane_rows) {
     Demand(graph, constraints, kept_bends);
     CoupledPairs(graph, constraints, pairs);
     linear_.Reset(n_, pairs);
@@ -312,12 +315,12 @@ class Problem {
   // J^T J of the data terms and E_reg. A data row e . (sum_k w_k (R_k d_k + g_k + t_k)) has,
   // on node k, the 12 entries w_k (e_a d_k[b] on R's row a, e_a on t_a).
   void AssembleLinear() {
-    // A plane row's per-node vectors, as columns; sized once for the most nodes a point has.
+    // A plane row's per-node vectors, as columns: at least as many as a point has nodes.
     std::size_t most_nodes = 0;
     for (const PointConstraint& c : constraints_) most_nodes = std::max(most_nodes, c.nodes.size());
-    VB_DEMAND(most_nodes <= static_cast<std::size_t>(kMaxNodesPerPoint));
-    Eigen::Matrix<double, kB, Eigen::Dynamic, Eigen::ColMajor, kB, kMaxNodesPerPoint> u(
-        kB, static_cast<Eigen::Index>(most_nodes));
+    Eigen::Matrix<double, kB, Eigen::Dynamic>& u = plane_rows_;
+    if (u.cols() < static_cast<Eigen::Index>(most_nodes))
+      u.resize(kB, static_cast<Eigen::Index>(most_nodes));
     for (const PointConstraint& c : constraints_) {
       const double s2 = options_.w_data * c.weight;
       const std::size_t m = c.nodes.size();
@@ -386,6 +389,7 @@ class Problem {
   std::span<const Eigen::Vector3d> kept_bends_;
   int n_;
   BlockMatrix& linear_;
+  Eigen::Matrix<double, kB, Eigen::Dynamic>& plane_rows_;
 };
 
 // SolveBlockCg's buffers, sized once per solve and reused by every Levenberg-Marquardt step.
@@ -497,6 +501,7 @@ void Pack(const DeformationState& state, Eigen::VectorXd* x) {
 
 struct DeformationScratch::Storage {
   std::vector<std::array<int, 2>> pairs;
+  Eigen::Matrix<double, kB, Eigen::Dynamic> plane_rows;
   BlockMatrix linear, jtj;
   Eigen::VectorXd x, gradient, next_gradient, damping, rhs, step, Hstep, next, undamped;
   CgScratch cg;
@@ -541,7 +546,8 @@ double EmbeddedDeformationEnergy(const DeformationGraph& graph,
   DeformationScratch scratch;
   auto& s = DeformationSolve::Of(&scratch);
   Pack(state, &s.x);
-  return Problem(graph, constraints, options, kept_bends, &s.linear, &s.pairs).Cost(s.x, gradient);
+  return Problem(graph, constraints, options, kept_bends, &s.linear, &s.pairs, &s.plane_rows)
+      .Cost(s.x, gradient);
 }
 
 SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
@@ -569,7 +575,7 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
     scratch = own.get();
   }
   auto& s = DeformationSolve::Of(scratch);
-  Problem problem(graph, constraints, options, kept_bends, &s.linear, &s.pairs);
+  Problem problem(graph, constraints, options, kept_bends, &s.linear, &s.pairs, &s.plane_rows);
 
   Eigen::VectorXd& x = s.x;
   Pack(*state, &x);

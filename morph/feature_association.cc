@@ -119,6 +119,7 @@ struct Search {
         std::upper_bound(best.begin(), best.end(), cost,
                          [](double c, const Candidate& y) { return c < y.cost; }) -
         best.begin());
+    if (best.size() == keep && static_cast<std::size_t>(at) == keep) return;  // a NaN cost
     // A full list's last candidate drops out: its lists take the new one's, which then moves
     // to its place (no allocation once the list is full).
     if (best.size() < keep) best.emplace_back();

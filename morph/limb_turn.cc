@@ -110,7 +110,8 @@ DeformationState TurnLimbs(const TemplateModel& model, const BranchGuide& guide,
                            int* turned, const DeformationState* current) {
   VB_DEMAND(target.cols() > 0 && target_index.size() == target.cols());
   VB_DEMAND(placement.Usable());
-  VB_DEMAND(static_cast<int>(guide.limbs->node_branch.size()) == model.graph.num_nodes());
+  VB_DEMAND(guide.limbs != nullptr &&
+            static_cast<int>(guide.limbs->node_branch.size()) == model.graph.num_nodes());
   VB_DEMAND(current == nullptr || static_cast<int>(current->t.size()) == model.graph.num_nodes());
   DeformationState state = DeformationState::Identity(model.graph.num_nodes());
   if (turned != nullptr) *turned = 0;
@@ -177,7 +178,8 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
                             int* beyond_root, RootSwing* about_roots) {
   VB_DEMAND(target.cols() > 0 && target_index.size() == target.cols());
   VB_DEMAND(placement.Usable());
-  VB_DEMAND(static_cast<int>(guide.limbs->node_branch.size()) == model.graph.num_nodes());
+  VB_DEMAND(guide.limbs != nullptr &&
+            static_cast<int>(guide.limbs->node_branch.size()) == model.graph.num_nodes());
   VB_DEMAND(guide.limbs->vertex_branch.size() == static_cast<std::size_t>(model.V.cols()));
   VB_DEMAND(guide.limbs->vertex_along.size() == guide.limbs->vertex_branch.size() &&
             guide.limbs->node_along.size() == guide.limbs->node_branch.size());

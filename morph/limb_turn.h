@@ -59,11 +59,11 @@ struct RootSwing {
 /// neighbour it lay on; the rest shape is also scored where it points, unswung. With
 /// options.limb_swing_pivots above 1, the same is tried about points out along the limb's
 /// branch, moving only the samples and graph nodes at least that far out
-/// (BranchGuide::vertex_along, node_along), and the pivot whose best move lowers that two-way
+/// (TemplateLimbs::vertex_along, node_along), and the pivot whose best move lowers that two-way
 /// distance most is kept. A limb moves only when
 /// a move beats its own place and shape by more than rounding. Limbs go longest first, each
 /// against the others as already moved. Unlike TurnLimbs it reads no skeleton of the target:
-/// only the template's limbs (BranchGuide::vertex_branch, node_branch) and their roots.
+/// only the template's limbs (TemplateLimbs::vertex_branch, node_branch) and their roots.
 /// @param[in] target 3 by N points in the target's frame, indexed by @p target_index.
 /// @param[in] placement the template's normalised frame -> the target's.
 /// @param[out] swung when given, the number of limbs moved (swung, or unfolded in place).

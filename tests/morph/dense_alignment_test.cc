@@ -59,8 +59,7 @@ TEST(EstimateNormalsTest, WithoutHintsAreTheSameLinesOfEitherSign) {
   const Eigen::Matrix3Xd P = SpherePoints(3000, 1);
   const PointIndex index(P);
   const Eigen::Matrix3Xd oriented = EstimateNormals(P, index, 16, 1, P);
-  const Eigen::Matrix3Xd either =
-      EstimateNormals(P, index, 16, 1, Eigen::Matrix3Xd(3, 0));
+  const Eigen::Matrix3Xd either = EstimateNormals(P, index, 16, 1, Eigen::Matrix3Xd(3, 0));
   for (Eigen::Index i = 0; i < P.cols(); ++i)
     EXPECT_NEAR(std::abs(either.col(i).dot(oriented.col(i))), 1.0, 1e-12);
 }

@@ -63,7 +63,12 @@ TEST_F(TemplateArtifactTest, MorphFromTheLoadedArtifactEqualsMorphFromTheBuiltMo
   // The limbs are not stored but derived again on load.
   ASSERT_GT(model_->limbs.num_branches(), 0);
   EXPECT_EQ(back.model.limbs.rest, model_->limbs.rest);
+  EXPECT_EQ(back.model.limbs.weights.nodes, model_->limbs.weights.nodes);
+  EXPECT_EQ(back.model.limbs.weights.weights, model_->limbs.weights.weights);
+  EXPECT_EQ(back.model.limbs.length, model_->limbs.length);
   EXPECT_EQ(back.model.limbs.node_branch, model_->limbs.node_branch);
+  EXPECT_EQ(back.model.limbs.node_along, model_->limbs.node_along);
+  EXPECT_EQ(back.model.limbs.vertex_branch, model_->limbs.vertex_branch);
   EXPECT_EQ(back.model.limbs.vertex_along, model_->limbs.vertex_along);
   ASSERT_EQ(back.annotations.cuts.size(), carcass_->annotations.cuts.size());
   EXPECT_EQ(back.annotations.cuts[1].line.size(), carcass_->annotations.cuts[1].line.size());
