@@ -135,9 +135,14 @@ TEST(MorphAllocationsTest, ASolveWithAWarmScratchAllocatesOnlyItsStateAndMessage
   const test::AllocationScope cold;
   pushed.Solve(nullptr);
   const long without = cold.count();
-  // The state (2) and the summary's message: measured 3 with the scratch, 27 without.
+  // The state (2) and the summary's message: measured 3 with the scratch, 27 without (13
+  // under AddressSanitizer, where Eigen's mallocs go uncounted).
   EXPECT_LE(with_scratch, 3);
+#if defined(__SANITIZE_ADDRESS__)
+  EXPECT_GE(without, 9);
+#else
   EXPECT_GE(without, 18);
+#endif
   RecordProperty("with_scratch", static_cast<int>(with_scratch));
   RecordProperty("without", static_cast<int>(without));
 }
