@@ -392,7 +392,8 @@ class Problem {
   Eigen::Matrix<double, kB, Eigen::Dynamic>& plane_rows_;
 };
 
-// SolveBlockCg's buffers, sized once per solve and reused by every Levenberg-Marquardt step.
+// SolveBlockCg's buffers, resized for each solve's node count (keeping their storage when it
+// does not change) and reused by every Levenberg-Marquardt step.
 struct CgScratch {
   void Resize(int num_nodes) {
     inverse.resize(static_cast<std::size_t>(num_nodes));
@@ -408,7 +409,7 @@ struct CgScratch {
 // Conjugate gradients on (H + diag(damping)) x = b, preconditioned by the inverse of each
 // node's damped diagonal block; stops when |residual| <= tolerance |b|, after
 // @p max_iterations, or once @p deadline passed.
-// @pre @p scratch was made for H.num_nodes() nodes.
+// @pre @p scratch was resized for H.num_nodes() nodes.
 void SolveBlockCg(const BlockMatrix& H, const Eigen::VectorXd& damping, const Eigen::VectorXd& b,
                   double tolerance, int max_iterations, const MorphDeadline& deadline,
                   CgScratch* scratch, Eigen::VectorXd* x) {
