@@ -668,15 +668,22 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
 Eigen::Matrix3Xd DeformPoints(const DeformationGraph& graph, const NodeWeights& weights,
                               const Eigen::Matrix3Xd& rest, const DeformationState& state) {
   VB_DEMAND(weights.nodes.cols() == rest.cols());
-  Eigen::Matrix3Xd out = Eigen::Matrix3Xd::Zero(3, rest.cols());
-  for (Eigen::Index i = 0; i < rest.cols(); ++i) {
-    for (Eigen::Index k = 0; k < weights.nodes.rows(); ++k) {
-      const int j = weights.nodes(k, i);
-      if (j < 0) continue;
-      const Eigen::Vector3d g = graph.nodes.col(j);
-      out.col(i) += weights.weights(k, i) * (state.rotation(j) * (rest.col(i) - g) + g +
-                                             state.t[static_cast<std::size_t>(j)]);
-    }
+  Eigen::Matrix3Xd out(3, rest.cols());
+  for (Eigen::Index i = 0; i < rest.cols(); ++i)
+    out.col(i) = DeformPoint(graph, weights, i, rest.col(i), state);
+  return out;
+}
+
+Eigen::Vector3d DeformPoint(const DeformationGraph& graph, const NodeWeights& weights,
+                            Eigen::Index column, const Eigen::Vector3d& rest,
+                            const DeformationState& state) {
+  Eigen::Vector3d out = Eigen::Vector3d::Zero();
+  for (Eigen::Index k = 0; k < weights.nodes.rows(); ++k) {
+    const int j = weights.nodes(k, column);
+    if (j < 0) continue;
+    const Eigen::Vector3d g = graph.nodes.col(j);
+    out += weights.weights(k, column) *
+           (state.rotation(j) * (rest - g) + g + state.t[static_cast<std::size_t>(j)]);
   }
   return out;
 }

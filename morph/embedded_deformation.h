@@ -154,6 +154,13 @@ double EmbeddedDeformationEnergy(const DeformationGraph& graph,
 Eigen::Matrix3Xd DeformPoints(const DeformationGraph& graph, const NodeWeights& weights,
                               const Eigen::Matrix3Xd& rest, const DeformationState& state);
 
+/// Eq. (9) for one point: @p rest moved by the nodes of column @p column of @p weights, as
+/// DeformPoints moves that column (to the bit), without a matrix for the result.
+/// @pre 0 <= column < weights.nodes.cols().
+Eigen::Vector3d DeformPoint(const DeformationGraph& graph, const NodeWeights& weights,
+                            Eigen::Index column, const Eigen::Vector3d& rest,
+                            const DeformationState& state);
+
 /// The normals of the surface DeformPoints moves: each node turns a normal by its matrix's
 /// cofactor matrix, det(A) A^-T (Sumner et al.'s inverse-transpose rule without the inverse,
 /// so each node also counts by its determinant), blended with DeformPoints' weights and made

@@ -60,24 +60,23 @@ bool OnLimbFrom(const BranchGuide& guide, std::size_t j, int a, double from) {
   return guide.limbs->node_branch[j] == a && guide.limbs->node_along[j] >= from;
 }
 
-// @p state with every graph node of limb @p a (TemplateLimbs::node_branch) at least @p from of
-// the way out (TemplateLimbs::node_along) turned by @p turn and moved so that each maps the
-// rest point @p root_rest onto @p root: that part of the limb in its rest shape, turned as a
-// whole and hung from @p root. The other nodes keep their transforms.
+// Sets @p out to @p state with every graph node of limb @p a (TemplateLimbs::node_branch) at
+// least @p from of the way out (TemplateLimbs::node_along) turned by @p turn and moved so that
+// each maps the rest point @p root_rest onto @p root: that part of the limb in its rest shape,
+// turned as a whole and hung from @p root. The other nodes keep their transforms.
 // @pre @p turn is a rotation.
-DeformationState CarriedAtRest(const DeformationGraph& graph, const BranchGuide& guide, int a,
-                               double from, const Eigen::Matrix3d& turn,
-                               const Eigen::Vector3d& root_rest, const Eigen::Vector3d& root,
-                               const DeformationState& state) {
-  DeformationState out = state;
+void CarriedAtRest(const DeformationGraph& graph, const BranchGuide& guide, int a, double from,
+                   const Eigen::Matrix3d& turn, const Eigen::Vector3d& root_rest,
+                   const Eigen::Vector3d& root, const DeformationState& state,
+                   DeformationState* out) {
+  *out = state;
   for (int j = 0; j < graph.num_nodes(); ++j) {
     if (!OnLimbFrom(guide, static_cast<std::size_t>(j), a, from)) continue;
     const Eigen::Vector3d g = graph.nodes.col(j);
     // p -> turn (p - root_rest) + root for every point the node carries.
-    out.set_rotation(j, turn);
-    out.t[static_cast<std::size_t>(j)] = turn * (g - root_rest) + root - g;
+    out->set_rotation(j, turn);
+    out->t[static_cast<std::size_t>(j)] = turn * (g - root_rest) + root - g;
   }
-  return out;
 }
 
 // A move of a limb's part from a pivot out (SwingLimbs).
@@ -219,6 +218,17 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
   // One move's sample lists, reused from move to move (cleared, not reallocated).
   std::vector<Eigen::Index> mine, others, near;
   std::vector<double> elsewhere;
+  // One move's limb samples (posed, and in the rest shape) and a shape less its root, in the
+  // leading columns of buffers grown to the largest limb.
+  Eigen::Matrix3Xd limb_buffer, rest_limb_buffer, centred_buffer;
+  // A move's state with the limb in its rest shape, and the translations before a move.
+  DeformationState at_rest;
+  std::vector<Eigen::Vector3d> before;
+  const auto leading = [](Eigen::Matrix3Xd* buffer, std::size_t n) {
+    const auto cols = static_cast<Eigen::Index>(n);
+    if (buffer->cols() < cols) buffer->resize(3, cols);
+    return buffer->leftCols(cols);
+  };
   const int pivots = std::max(1, options.limb_swing_pivots);
   // The best move of limb @p a's part from @p fraction of its branch out (rounded to the
   // branch's samples), from @p from_state (@p posed: the samples as it poses them); none
@@ -240,16 +250,13 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
     for (std::size_t j = 0; j < guide.limbs->node_branch.size() && !carried; ++j)
       carried = OnLimbFrom(guide, j, a, from);
     if (!carried) return none;
-    const Eigen::Matrix3Xd limb = posed(Eigen::all, mine);
+    auto limb = leading(&limb_buffer, mine.size());
+    for (std::size_t k = 0; k < mine.size(); ++k)
+      limb.col(static_cast<Eigen::Index>(k)) = posed.col(mine[k]);
     const Eigen::Matrix3Xd trunk = posed(Eigen::all, others);
-    NodeWeights root_weights;
-    root_weights.nodes = guide.limbs->weights.nodes.col(BranchGuide::Column(a, column));
-    root_weights.weights = guide.limbs->weights.weights.col(BranchGuide::Column(a, column));
-    const Eigen::Vector3d root =
-        DeformPoints(model.graph, root_weights,
-                     Eigen::Matrix3Xd(guide.limbs->rest.col(BranchGuide::Column(a, column))),
-                     from_state)
-            .col(0);
+    const Eigen::Index root_column = BranchGuide::Column(a, column);
+    const Eigen::Vector3d root = DeformPoint(model.graph, guide.limbs->weights, root_column,
+                                             guide.limbs->rest.col(root_column), from_state);
     const Eigen::Vector3d axis = limb.rowwise().mean() - root;
     if (!(axis.norm() > 0)) return none;
     const double reach = (limb.colwise() - root).colwise().norm().maxCoeff();
@@ -268,8 +275,8 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
     }
     // Two-way capped distance of @p shape (@p centred: less the root), swung by R about the
     // root into @p buffer.
-    const auto score = [&](const Eigen::Matrix3Xd& centred, const Eigen::Matrix3d& R,
-                           Eigen::Matrix3Xd* buffer) {
+    const auto score = [&](const Eigen::Ref<const Eigen::Matrix3Xd>& centred,
+                           const Eigen::Matrix3d& R, Eigen::Matrix3Xd* buffer) {
       if (buffer->cols() < centred.cols()) buffer->resize(3, centred.cols());
       auto swung_limb = buffer->leftCols(centred.cols());
       swung_limb.noalias() = R * centred;
@@ -288,13 +295,14 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
       return sum;
     };
     // The best swing of @p shape (its axis laid on each direction), and its score.
-    const auto best_swing = [&](const Eigen::Matrix3Xd& shape) {
+    const auto best_swing = [&](const Eigen::Ref<const Eigen::Matrix3Xd>& shape) {
       const Eigen::Vector3d shape_axis = shape.rowwise().mean() - root;
       const auto turn_to = [&](std::size_t k) {
         return Eigen::Matrix3d(
             Eigen::Quaterniond::FromTwoVectors(shape_axis, directions[k]).toRotationMatrix());
       };
-      const Eigen::Matrix3Xd centred = shape.colwise() - root;
+      auto centred = leading(&centred_buffer, static_cast<std::size_t>(shape.cols()));
+      centred = shape.colwise() - root;
       ForEach(pool, static_cast<int>(directions.size()), [&](int k) {
         const auto d = static_cast<std::size_t>(k);
         scores[d] = score(centred, turn_to(d), &swing_buffers[d]);
@@ -308,23 +316,26 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
     // limb is also tried in its rest shape, turned as the graph node that weighs most at its
     // root is (the nearest rotation of that node's transform) and hung from the posed root.
     Eigen::Index slot = 0;
-    root_weights.weights.col(0).maxCoeff(&slot);
-    const int carrier = root_weights.nodes(slot, 0);  // -1 only for a root no node reaches
-    DeformationState at_rest;
+    guide.limbs->weights.weights.col(root_column).maxCoeff(&slot);
+    // -1 only for a root no node reaches
+    const int carrier = guide.limbs->weights.nodes(slot, root_column);
     bool from_rest = false;
     if (carrier >= 0) {
-      at_rest = CarriedAtRest(
-          model.graph, guide, a, from,
-          NearestRotation(Eigen::JacobiSVD<Eigen::Matrix3d>(
-              from_state.rotation(carrier), Eigen::ComputeFullU | Eigen::ComputeFullV)),
-          guide.limbs->rest.col(BranchGuide::Column(a, column)), root, from_state);
-      const Eigen::Matrix3Xd rest_limb =
-          DeformPoints(model.graph, sampled.weights, sampled.rest, at_rest)(Eigen::all, mine);
+      CarriedAtRest(model.graph, guide, a, from,
+                    NearestRotation(Eigen::JacobiSVD<Eigen::Matrix3d>(
+                        from_state.rotation(carrier), Eigen::ComputeFullU | Eigen::ComputeFullV)),
+                    guide.limbs->rest.col(root_column), root, from_state, &at_rest);
+      // The limb's samples alone, as DeformPoints would move them.
+      auto rest_limb = leading(&rest_limb_buffer, mine.size());
+      for (std::size_t k = 0; k < mine.size(); ++k)
+        rest_limb.col(static_cast<Eigen::Index>(k)) =
+            DeformPoint(model.graph, sampled.weights, mine[k], sampled.rest.col(mine[k]), at_rest);
       if ((rest_limb.rowwise().mean() - root).norm() > 0) {
         auto [rest_R, rest_best] = best_swing(rest_limb);
         // Unfolded where it is, not swung: the lattice of directions may hold none as near.
-        const double unswung =
-            score(rest_limb.colwise() - root, Eigen::Matrix3d::Identity(), &swing_buffers.front());
+        auto centred = leading(&centred_buffer, mine.size());
+        centred = rest_limb.colwise() - root;
+        const double unswung = score(centred, Eigen::Matrix3d::Identity(), &swing_buffers.front());
         if (unswung <= rest_best) {
           rest_R = Eigen::Matrix3d::Identity();
           rest_best = unswung;
@@ -339,8 +350,9 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
     // Beaten by more than rounding: the rest shape of a limb the fit left unbent scores its
     // own place up to the last digits, and is no swing. The cap, the most one distance adds,
     // keeps that margin for a limb that already lies on the target (a score near 0).
-    const double own =
-        score(limb.colwise() - root, Eigen::Matrix3d::Identity(), &swing_buffers.front());
+    auto centred = leading(&centred_buffer, mine.size());
+    centred = limb.colwise() - root;
+    const double own = score(centred, Eigen::Matrix3d::Identity(), &swing_buffers.front());
     if (!(best < own - kRounding * (own + cap))) return none;
     LimbMove m;
     m.gain = own - best;
@@ -348,14 +360,14 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
     m.R = R;
     m.pivot = root;
     m.from_rest = from_rest;
-    if (from_rest) m.at_rest = std::move(at_rest);
+    if (from_rest) m.at_rest = at_rest;
     return m;
   };
   // @p m done to @p into: every graph node of limb @p a from the pivot out turns about it,
   // p -> R (T_j(p) - pivot) + pivot, after that part is put in its rest shape when from_rest.
   // Returns how far the moved nodes went, mean, template sizes.
   const auto apply = [&](const LimbMove& m, int a, DeformationState* into) {
-    const std::vector<Eigen::Vector3d> before = into->t;
+    before = into->t;
     if (m.from_rest) *into = m.at_rest;
     double travel = 0.0;
     int count = 0;

@@ -54,7 +54,7 @@ WorkerPool::WorkerPool(int threads, WorkerWrapper wrapper)
 
 WorkerPool::~WorkerPool() = default;
 
-void WorkerPool::ForEach(int n, const std::function<void(int)>& body) {
+void WorkerPool::ForEach(int n, FunctionRef<void(int)> body) {
   if (n <= 0) return;
   // On one of this pool's workers (a nested loop) the helpers would queue behind the caller
   // itself: the loop runs here alone.
@@ -87,7 +87,7 @@ void WorkerPool::ForEach(int n, const std::function<void(int)>& body) {
   if (error) std::rethrow_exception(error);
 }
 
-void ForEach(WorkerPool* pool, int n, const std::function<void(int)>& body) {
+void ForEach(WorkerPool* pool, int n, FunctionRef<void(int)> body) {
   if (pool != nullptr) {
     pool->ForEach(n, body);
   } else {
@@ -96,7 +96,7 @@ void ForEach(WorkerPool* pool, int n, const std::function<void(int)>& body) {
 }
 
 void ForEachBlock(WorkerPool* pool, std::int64_t n, std::int64_t block,
-                  const std::function<void(std::int64_t first, std::int64_t last)>& body) {
+                  FunctionRef<void(std::int64_t first, std::int64_t last)> body) {
   VB_DEMAND(block >= 1 && n >= 0 && (n + block - 1) / block <= std::numeric_limits<int>::max());
   const int blocks = static_cast<int>((n + block - 1) / block);
   ForEach(pool, blocks, [&](int b) {

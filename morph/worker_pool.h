@@ -3,8 +3,37 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <type_traits>
+#include <utility>
 
 namespace vb::morph {
+
+/// A reference to a callable, as C++26's std::function_ref: it neither owns nor copies what it
+/// refers to, so passing a lambda to a loop below allocates nothing (a std::function holding
+/// a lambda that captures more than two references allocates). @pre the callable outlives
+/// every call made through the reference: pass it down the stack, do not store it.
+template <class Signature>
+class FunctionRef;
+
+template <class R, class... Args>
+class FunctionRef<R(Args...)> {
+ public:
+  template <class F>
+  requires(!std::is_same_v<std::remove_cvref_t<F>, FunctionRef> &&
+           std::is_invocable_r_v<R, F&, Args...>) FunctionRef(F&& f)
+  noexcept  // NOLINT(google-explicit-constructor): a lambda converts
+      : callable_(const_cast<void*>(static_cast<const void*>(std::addressof(f)))),
+        call_([](void* callable, Args... args) -> R {
+          return std::invoke(*static_cast<std::remove_reference_t<F>*>(callable),
+                             std::forward<Args>(args)...);
+        }) {}
+
+  R operator()(Args... args) const { return call_(callable_, std::forward<Args>(args)...); }
+
+ private:
+  void* callable_;
+  R (*call_)(void*, Args...);
+};
 
 /// Runs a worker thread's whole life: sets the thread up, calls @p body exactly once (it
 /// returns when the pool is destroyed) and tears down; it must not throw. The daemon gives
@@ -32,7 +61,7 @@ class WorkerPool {
   /// order; returns when every call has. A body that writes only its own i's results gives
   /// the same results on any number of threads. Once a call throws, no further index is
   /// started; the first exception caught is rethrown here after the running calls finish.
-  void ForEach(int n, const std::function<void(int)>& body);
+  void ForEach(int n, FunctionRef<void(int)> body);
 
  private:
   struct Pool;
@@ -41,12 +70,12 @@ class WorkerPool {
 };
 
 /// @p pool's ForEach, or the same loop on the caller alone when @p pool is null.
-void ForEach(WorkerPool* pool, int n, const std::function<void(int)>& body);
+void ForEach(WorkerPool* pool, int n, FunctionRef<void(int)> body);
 
 /// [0, @p n) cut into blocks of @p block (the last may be shorter), body(first, last) called
 /// once per block as ForEach calls its body: for loops over many cheap items, each block
 /// setting up its own scratch. @pre block >= 1.
 void ForEachBlock(WorkerPool* pool, std::int64_t n, std::int64_t block,
-                  const std::function<void(std::int64_t first, std::int64_t last)>& body);
+                  FunctionRef<void(std::int64_t first, std::int64_t last)> body);
 
 }  // namespace vb::morph
