@@ -58,6 +58,7 @@ int NearestFacingAlike(const PointIndex& index, const Eigen::Matrix3Xd& normals,
 std::vector<int> Spread(Eigen::Index n, int wanted) {
   std::vector<int> out;
   const Eigen::Index step = std::max<Eigen::Index>(1, n / std::max(1, wanted));
+  out.reserve(static_cast<std::size_t>(std::max<Eigen::Index>(0, (n + step - 1) / step)));
   for (Eigen::Index i = 0; i < n; i += step) out.push_back(static_cast<int>(i));
   return out;
 }

@@ -1,9 +1,15 @@
 #include "morph/skeleton_branches.h"
 
 #include <algorithm>
-#include <boost/graph/adjacency_list.hpp>
+// clang-format off
+// The compressed graph last, as in cloud_skeleton.cc: its boost::detail::get would hide the
+// get the search uses on plain arrays.
 #include <boost/graph/dijkstra_shortest_paths.hpp>
+#include <boost/graph/compressed_sparse_row_graph.hpp>
+// clang-format on
 #include <limits>
+#include <utility>
+#include <vector>
 
 namespace vb::morph {
 namespace {
@@ -21,17 +27,26 @@ std::vector<SkeletonBranch> TerminalBranches(const SkeletonGraph& skeleton,
   std::vector<SkeletonBranch> branches;
   const int n = skeleton.num_nodes();
   if (n == 0 || features.num_junctions() == 0) return branches;
-  // Edges kept in a vector (the last vecS), not one list node each.
-  using Graph =
-      boost::adjacency_list<boost::vecS, boost::vecS, boost::undirectedS, boost::no_property,
-                            boost::property<boost::edge_weight_t, double>, boost::no_property,
-                            boost::vecS>;
-  Graph graph(static_cast<std::size_t>(n));
+  // Built once from its edge list, each undirected edge as two directed ones: a node's edges
+  // keep the skeleton's order, as an undirected adjacency list's would, so the search meets
+  // equal paths in the same order.
+  using Graph = boost::compressed_sparse_row_graph<boost::directedS, boost::no_property,
+                                                   boost::property<boost::edge_weight_t, double>>;
+  std::vector<std::pair<std::size_t, std::size_t>> arcs;
+  std::vector<double> lengths;
+  arcs.reserve(2 * skeleton.edges.size());
+  lengths.reserve(2 * skeleton.edges.size());
   for (const auto& e : skeleton.edges) {
     if (e[0] == e[1]) continue;
-    boost::add_edge(static_cast<std::size_t>(e[0]), static_cast<std::size_t>(e[1]),
-                    (skeleton.nodes.col(e[0]) - skeleton.nodes.col(e[1])).norm(), graph);
+    const auto a = static_cast<std::size_t>(e[0]), b = static_cast<std::size_t>(e[1]);
+    const double length = (skeleton.nodes.col(e[0]) - skeleton.nodes.col(e[1])).norm();
+    arcs.emplace_back(a, b);
+    lengths.push_back(length);
+    arcs.emplace_back(b, a);
+    lengths.push_back(length);
   }
+  const Graph graph(boost::edges_are_unsorted_multi_pass, arcs.begin(), arcs.end(), lengths.begin(),
+                    static_cast<std::size_t>(n));
   std::vector<bool> is_root(static_cast<std::size_t>(n), false);
   for (Eigen::Index j = 0; j < features.junctions.cols(); ++j)
     is_root[static_cast<std::size_t>(NearestNode(skeleton, features.junctions.col(j)))] = true;

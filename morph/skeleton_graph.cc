@@ -5,6 +5,9 @@
 #include <cmath>
 #include <limits>
 #include <queue>
+#include <span>
+#include <utility>
+#include <vector>
 
 namespace vb::morph {
 
@@ -19,22 +22,41 @@ std::vector<int> SkeletonGraph::Degrees() const {
 
 namespace {
 
-struct Adjacency {
-  std::vector<std::vector<std::pair<int, double>>> next;  // (neighbour, length)
-  explicit Adjacency(const SkeletonGraph& g) : next(static_cast<std::size_t>(g.num_nodes())) {
+// Each node's neighbours with the edges' lengths, in the edges' order, in one array: node v's
+// are next_[first_[v], first_[v + 1]).
+class Adjacency {
+ public:
+  explicit Adjacency(const SkeletonGraph& g)
+      : first_(static_cast<std::size_t>(g.num_nodes()) + 1, 0) {
+    for (const auto& e : g.edges) {
+      if (e[0] == e[1]) continue;
+      ++first_[static_cast<std::size_t>(e[0]) + 1];
+      ++first_[static_cast<std::size_t>(e[1]) + 1];
+    }
+    for (std::size_t v = 1; v < first_.size(); ++v) first_[v] += first_[v - 1];
+    next_.resize(first_.back());
+    std::vector<std::size_t> at(first_.begin(), first_.end() - 1);
     for (const auto& e : g.edges) {
       if (e[0] == e[1]) continue;
       const double length = (g.nodes.col(e[0]) - g.nodes.col(e[1])).norm();
-      next[static_cast<std::size_t>(e[0])].push_back({e[1], length});
-      next[static_cast<std::size_t>(e[1])].push_back({e[0], length});
+      next_[at[static_cast<std::size_t>(e[0])]++] = {e[1], length};
+      next_[at[static_cast<std::size_t>(e[1])]++] = {e[0], length};
     }
+  }
+  // (neighbour, length) of node @p v.
+  std::span<const std::pair<int, double>> next(int v) const {
+    const auto at = static_cast<std::size_t>(v);
+    return {next_.data() + first_[at], first_[at + 1] - first_[at]};
   }
   int degree(int v, const std::vector<bool>& alive) const {
     int d = 0;
-    for (const auto& [u, length] : next[static_cast<std::size_t>(v)])
-      d += alive[static_cast<std::size_t>(u)] ? 1 : 0;
+    for (const auto& [u, length] : next(v)) d += alive[static_cast<std::size_t>(u)] ? 1 : 0;
     return d;
   }
+
+ private:
+  std::vector<std::size_t> first_;
+  std::vector<std::pair<int, double>> next_;
 };
 
 }  // namespace
@@ -59,7 +81,7 @@ FeatureNodes ExtractFeatureNodes(const SkeletonGraph& skeleton, const FeatureOpt
       while (true) {
         int step = -1;
         double step_length = 0.0;
-        for (const auto& [u, l] : adjacency.next[static_cast<std::size_t>(current)]) {
+        for (const auto& [u, l] : adjacency.next(current)) {
           if (alive[static_cast<std::size_t>(u)] && u != previous) {
             step = u;
             step_length = l;
@@ -114,7 +136,7 @@ FeatureNodes ExtractFeatureNodes(const SkeletonGraph& skeleton, const FeatureOpt
       queue.pop();
       if (d > distance[static_cast<std::size_t>(v)] || d > options.junction_merge_distance)
         continue;
-      for (const auto& [u, l] : adjacency.next[static_cast<std::size_t>(v)]) {
+      for (const auto& [u, l] : adjacency.next(v)) {
         if (!alive[static_cast<std::size_t>(u)] || d + l >= distance[static_cast<std::size_t>(u)])
           continue;
         distance[static_cast<std::size_t>(u)] = d + l;

@@ -210,7 +210,7 @@ TEST_F(MemoryBudgetTest, SteadyStateJobsAllocateOnlyFromTheArenaAndGiveItAllBack
     const MemoryBudgetStats& s = after[j].stats;
     const MemoryBudgetStats& previous = after[j - 1].stats;
     EXPECT_EQ(s.heap_allocations, first.heap_allocations) << "job " << j;
-    // A whole job (morph, cuts, message, CAN) makes 4,900 to 5,300 allocations here.
+    // A whole job (morph, cuts, message, CAN) makes 4,500 to 4,900 allocations here.
     const auto job = static_cast<long>(s.arena_allocations - previous.arena_allocations);
     fewest = std::min(fewest, job);
     most = std::max(most, job);
