@@ -677,6 +677,7 @@ Eigen::Matrix3Xd DeformPoints(const DeformationGraph& graph, const NodeWeights& 
 Eigen::Vector3d DeformPoint(const DeformationGraph& graph, const NodeWeights& weights,
                             Eigen::Index column, const Eigen::Vector3d& rest,
                             const DeformationState& state) {
+  VB_DEMAND(column >= 0 && column < weights.nodes.cols());
   Eigen::Vector3d out = Eigen::Vector3d::Zero();
   for (Eigen::Index k = 0; k < weights.nodes.rows(); ++k) {
     const int j = weights.nodes(k, column);

@@ -27,9 +27,9 @@ std::vector<SkeletonBranch> TerminalBranches(const SkeletonGraph& skeleton,
   std::vector<SkeletonBranch> branches;
   const int n = skeleton.num_nodes();
   if (n == 0 || features.num_junctions() == 0) return branches;
-  // Built once from its edge list, each undirected edge as two directed ones: a node's edges
-  // keep the skeleton's order, as an undirected adjacency list's would, so the search meets
-  // equal paths in the same order.
+  // Built once from its edge list, each undirected edge as two directed ones; each node's
+  // arcs are in the order of skeleton.edges, which fixes how the search breaks ties between
+  // equal paths.
   using Graph = boost::compressed_sparse_row_graph<boost::directedS, boost::no_property,
                                                    boost::property<boost::edge_weight_t, double>>;
   std::vector<std::pair<std::size_t, std::size_t>> arcs;

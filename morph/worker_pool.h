@@ -10,8 +10,10 @@ namespace vb::morph {
 
 /// A reference to a callable, as C++26's std::function_ref: it neither owns nor copies what it
 /// refers to, so passing a lambda to a loop below allocates nothing (a std::function holding
-/// a lambda that captures more than two references allocates). @pre the callable outlives
-/// every call made through the reference: pass it down the stack, do not store it.
+/// a lambda that captures more than two references allocates). It refers to function
+/// objects (a lambda, a std::function), not to a plain function named as such. @pre the
+/// callable outlives every call made through the reference: pass it down the stack, do not
+/// store it (`FunctionRef<void(int)> f = [&](int) {...};` refers to a lambda already gone).
 template <class Signature>
 class FunctionRef;
 
@@ -25,8 +27,12 @@ class FunctionRef<R(Args...)> {
   FunctionRef(F&& f) noexcept  // NOLINT(google-explicit-constructor): a lambda converts
       : callable_(const_cast<void*>(static_cast<const void*>(std::addressof(f)))),
         call_([](void* callable, Args... args) -> R {
-          return std::invoke(*static_cast<std::remove_reference_t<F>*>(callable),
-                             std::forward<Args>(args)...);
+          auto& target = *static_cast<std::remove_reference_t<F>*>(callable);
+          if constexpr (std::is_void_v<R>) {
+            std::invoke(target, std::forward<Args>(args)...);  // a result, if any, is dropped
+          } else {
+            return std::invoke(target, std::forward<Args>(args)...);
+          }
         }) {}
 
   R operator()(Args... args) const { return call_(callable_, std::forward<Args>(args)...); }

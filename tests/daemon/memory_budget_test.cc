@@ -210,19 +210,22 @@ TEST_F(MemoryBudgetTest, SteadyStateJobsAllocateOnlyFromTheArenaAndGiveItAllBack
     const MemoryBudgetStats& s = after[j].stats;
     const MemoryBudgetStats& previous = after[j - 1].stats;
     EXPECT_EQ(s.heap_allocations, first.heap_allocations) << "job " << j;
-    // A whole job (morph, cuts, message, CAN) makes 4,500 to 4,900 allocations here.
+    // A whole job (morph, cuts, message, CAN) makes 4,500 to 4,900 allocations here, the
+    // morph alone about 4,000; a job whose morph ran on another thread, a few hundred.
     const auto job = static_cast<long>(s.arena_allocations - previous.arena_allocations);
     fewest = std::min(fewest, job);
     most = std::max(most, job);
-    EXPECT_GT(job, 4000) << "job " << j << " hardly allocated: is it still running on this thread?";
+    EXPECT_GT(job, 2000) << "job " << j << " hardly allocated: is it still running on this thread?";
     EXPECT_LE(s.arena_live_bytes, first.arena_live_bytes) << "job " << j;
     // Nothing outside the arena either: the morph's worker is inside the budget, and each
     // solve runs on the thread that asks for it (docs/decisions.md).
     EXPECT_EQ(s.other_allocations - previous.other_allocations, 0) << "job " << j;
     EXPECT_LT(s.arena_peak_bytes, kArenaBytes / 2) << "job " << j;  // the daemon's is 512 MiB
   }
-  RecordProperty("job_allocations_fewest", static_cast<int>(fewest));
-  RecordProperty("job_allocations_most", static_cast<int>(most));
+  if (after.size() > 1) {
+    RecordProperty("job_allocations_fewest", static_cast<int>(fewest));
+    RecordProperty("job_allocations_most", static_cast<int>(most));
+  }
 }
 
 }  // namespace
