@@ -64,7 +64,10 @@ Eigen::Matrix3Xd Downsample(const Eigen::Matrix3Xd& points, double cell, Members
         static_cast<int>(i)};
   }
   std::sort(keyed.begin(), keyed.end());
+  // At most one cell per point: reserved so that neither list grows by doubling.
   std::vector<Eigen::Vector3d> centres;
+  centres.reserve(keyed.size());
+  members->first.reserve(keyed.size() + 1);
   members->first.assign(1, 0);
   members->columns.resize(keyed.size());
   for (std::size_t i = 0; i < keyed.size();) {
@@ -117,6 +120,9 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
   // k-nearest-neighbour graph; edges much longer than typical spacing would short-cut gaps.
   std::vector<std::array<int, 2>> edges;
   std::vector<double> lengths;
+  edges.reserve(static_cast<std::size_t>(n) *
+                static_cast<std::size_t>(std::max(0, options.neighbours)));
+  lengths.reserve(edges.capacity());
   std::vector<int> found;
   std::vector<double> d2;
   for (int i = 0; i < n; ++i) {
