@@ -665,19 +665,12 @@ SolveSummary SolveEmbeddedDeformation(const DeformationGraph& graph,
   return finish(stop);
 }
 
-Eigen::Matrix3Xd DeformPoints(const DeformationGraph& graph, const NodeWeights& weights,
-                              const Eigen::Matrix3Xd& rest, const DeformationState& state) {
-  VB_DEMAND(weights.nodes.cols() == rest.cols());
-  Eigen::Matrix3Xd out(3, rest.cols());
-  for (Eigen::Index i = 0; i < rest.cols(); ++i)
-    out.col(i) = DeformPoint(graph, weights, i, rest.col(i), state);
-  return out;
-}
+namespace {
 
-Eigen::Vector3d DeformPoint(const DeformationGraph& graph, const NodeWeights& weights,
-                            Eigen::Index column, const Eigen::Vector3d& rest,
-                            const DeformationState& state) {
-  VB_DEMAND(column >= 0 && column < weights.nodes.cols());
+// DeformPoint without the check of @p column, for callers that checked every column at once.
+Eigen::Vector3d DeformColumn(const DeformationGraph& graph, const NodeWeights& weights,
+                             Eigen::Index column, const Eigen::Vector3d& rest,
+                             const DeformationState& state) {
   Eigen::Vector3d out = Eigen::Vector3d::Zero();
   for (Eigen::Index k = 0; k < weights.nodes.rows(); ++k) {
     const int j = weights.nodes(k, column);
@@ -687,6 +680,24 @@ Eigen::Vector3d DeformPoint(const DeformationGraph& graph, const NodeWeights& we
            (state.rotation(j) * (rest - g) + g + state.t[static_cast<std::size_t>(j)]);
   }
   return out;
+}
+
+}  // namespace
+
+Eigen::Matrix3Xd DeformPoints(const DeformationGraph& graph, const NodeWeights& weights,
+                              const Eigen::Matrix3Xd& rest, const DeformationState& state) {
+  VB_DEMAND(weights.nodes.cols() == rest.cols());
+  Eigen::Matrix3Xd out(3, rest.cols());
+  for (Eigen::Index i = 0; i < rest.cols(); ++i)
+    out.col(i) = DeformColumn(graph, weights, i, rest.col(i), state);
+  return out;
+}
+
+Eigen::Vector3d DeformPoint(const DeformationGraph& graph, const NodeWeights& weights,
+                            Eigen::Index column, const Eigen::Vector3d& rest,
+                            const DeformationState& state) {
+  VB_DEMAND(column >= 0 && column < weights.nodes.cols());
+  return DeformColumn(graph, weights, column, rest, state);
 }
 
 Eigen::Matrix3Xd DeformNormals(const NodeWeights& weights, const Eigen::Matrix3Xd& rest_normals,
