@@ -24,6 +24,7 @@
 #include "geometry/surface_sampling.h"
 #include "io/error.h"
 #include "io/mesh_io.h"
+#include "io/read_limits.h"
 #include "morph/coarse_alignment.h"
 #include "morph/dense_alignment.h"
 #include "morph/feature_association.h"
@@ -208,13 +209,43 @@ void WriteXyz(const std::filesystem::path& path, const Eigen::Matrix3Xd& P,
   if (!out) throw std::runtime_error("cannot write " + path.string());
 }
 
-std::vector<BenchCase> BuildCases(const ShapeBenchOptions& options, bool* any_failed) {
+// The built-in shapes and the shape file's (none without one).
+// @throws InputError for a shape file that cannot be read, a file shape named as a built-in
+//   one, or a name in options.shapes that is no shape's.
+std::vector<ShapeSpec> ShapeSpecs(const ShapeBenchOptions& options) {
+  std::vector<ShapeSpec> specs = DefaultShapeSpecs();
+  const std::size_t built_in = specs.size();
+  if (!options.shape_file.empty()) {
+    for (ShapeSpec& spec : LoadShapeSpecs(options.shape_file)) {
+      for (std::size_t k = 0; k < built_in; ++k)
+        if (specs[k].name == spec.name)
+          throw InputError(options.shape_file.string() + ": shape '" + spec.name +
+                           "' is already a built-in shape's name; call it something else");
+      specs.push_back(std::move(spec));
+    }
+  }
+  std::string names;
+  for (const ShapeSpec& spec : specs) names += spec.name + " ";
+  names += "lamb";
+  for (const std::string& name : options.shapes) {
+    const bool known =
+        name == "lamb" ||
+        std::any_of(specs.begin(), specs.end(), [&](const ShapeSpec& s) { return s.name == name; });
+    if (!known)
+      throw InputError("bench shapes: --shapes: no shape is called '" + io::Excerpt(name) +
+                       "' (names: " + names + ")");
+  }
+  return specs;
+}
+
+std::vector<BenchCase> BuildCases(const ShapeBenchOptions& options,
+                                  const std::vector<ShapeSpec>& specs, bool* any_failed) {
   auto wanted = [&](const std::string& name) {
     return options.shapes.empty() ||
            std::find(options.shapes.begin(), options.shapes.end(), name) != options.shapes.end();
   };
   std::vector<BenchCase> cases;
-  for (const ShapeSpec& spec : DefaultShapeSpecs()) {
+  for (const ShapeSpec& spec : specs) {
     if (!wanted(spec.name)) continue;
     const auto start = std::chrono::steady_clock::now();
     try {
@@ -326,9 +357,13 @@ int RunShapeBench(const ShapeBenchOptions& options) {
   if (!(options.points >= 100 && options.points <= 2000000)) {
     throw InputError("bench shapes: --points must lie in 100 to 2000000");
   }
+  const std::vector<ShapeSpec> specs = ShapeSpecs(options);
   bool any_failed = false;
-  const std::vector<BenchCase> cases = BuildCases(options, &any_failed);
-  if (cases.empty()) throw InputError("bench shapes: no shape to run (names: bcn sydney faerie wuson spiderblob lamb)");
+  const std::vector<BenchCase> cases = BuildCases(options, specs, &any_failed);
+  if (cases.empty())
+    throw InputError(
+        "bench shapes: no shape to run (every one asked for failed to build, or --lamb-pairs 0 "
+        "with only lamb)");
 
   std::filesystem::path examples = options.csv;
   examples.replace_extension();

@@ -13,8 +13,11 @@ namespace vb::tools {
 struct ShapeBenchOptions {
   std::vector<double> sigmas_mm = {0, 4, 16};  ///< noise along normals, at a 1.7 m body
   std::vector<std::string> variants = {"clean", "shadow", "clutter"};
-  /// Shapes to run by name (DefaultShapeSpecs, plus "lamb"); empty runs all of them.
+  /// Shapes to run by name (DefaultShapeSpecs, the shape file's, plus "lamb"); empty runs all
+  /// of them.
   std::vector<std::string> shapes;
+  /// More shapes (LoadShapeSpecs), run besides DefaultShapeSpecs; none when empty.
+  std::filesystem::path shape_file;
   int lamb_pairs = 2;            ///< synthetic lamb targets (generator poses)
   int max_pairs = 0;             ///< per shape, the first n pairs only (0: all)
   double shadow_fraction = 0.2;  ///< points removed in the camera-shadow band

@@ -299,9 +299,14 @@ int main(int argc, char** argv) {
                               "clean, shadow (a camera shadow), clutter (stray points added)")
       ->delimiter(',')
       ->capture_default_str();
-  shape_bench_cmd->add_option("--shapes", shape_bench.shapes,
-                              "Only these (bcn, sydney, faerie, wuson, spiderblob, lamb)")
+  shape_bench_cmd
+      ->add_option("--shapes", shape_bench.shapes,
+                   "Only these (bcn, sydney, faerie, wuson, spiderblob, lamb, and the "
+                   "shape file's)")
       ->delimiter(',');
+  shape_bench_cmd->add_option("--shape-file", shape_bench.shape_file,
+                              "Bodies of your own, rigged or vertex-animated (YAML, "
+                              "docs/benchmarks.md), run besides the built-in ones");
   shape_bench_cmd->add_option("--lamb-pairs", shape_bench.lamb_pairs, "Synthetic lamb targets")
       ->capture_default_str();
   shape_bench_cmd->add_option("--max-pairs", shape_bench.max_pairs, "Per shape, the first n pairs (0: all)")

@@ -3,14 +3,18 @@
 #include "tools/shape_set/shape_set.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <Eigen/Geometry>
+#include <filesystem>
+#include <fstream>
 #include <numbers>
 #include <ostream>
+#include <string>
 
-#include "io/error.h"
 #include "geometry/mesh_measures.h"
 #include "geometry/mesh_topology.h"
+#include "io/error.h"
 #include "morph/template_model.h"
 
 namespace vb::tools {
@@ -96,6 +100,110 @@ TEST(LoadPosedModelTest, AMissingFileOrAnimationIsAnErrorNamingIt) {
     FAIL() << "no error";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("no animation 7"), std::string::npos) << e.what();
+  }
+}
+
+// A shape file in a fresh folder, for LoadShapeSpecs.
+class ShapeFileTest : public testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() /
+           ("vb_shape_file_" + std::to_string(::getpid()) + "_" +
+            testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::create_directories(dir_);
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+  std::filesystem::path Write(const std::string& text) const {
+    const std::filesystem::path path = dir_ / "shapes.yaml";
+    std::ofstream(path) << text;
+    return path;
+  }
+  // The message LoadShapeSpecs gives for @p text ("" when it reads it).
+  std::string ErrorFor(const std::string& text) const {
+    try {
+      LoadShapeSpecs(Write(text));
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "";
+  }
+  std::filesystem::path dir_;
+};
+
+constexpr const char* kHeader = "format: vbutcher-shapes\nversion: 1\nshapes:\n";
+
+TEST_F(ShapeFileTest, ReadsBothKindsOfPoseAndFindsAModelBesideTheFile) {
+  const std::vector<ShapeSpec> specs = LoadShapeSpecs(
+      Write(std::string(kHeader) + "  - name: sydney_copy\n"
+                                   "    family: humanoid\n"
+                                   "    file: /usr/share/assimp/models/MD2/sydney.md2\n"
+                                   "    rest: {label: f0, keyframe: 0}\n"
+                                   "    targets:\n"
+                                   "      - {label: f50, keyframe: 50}\n"
+                                   "  - name: mine\n"
+                                   "    family: creature\n"
+                                   "    file: models/mine.x\n"
+                                   "    package: none\n"
+                                   "    licence: CC0\n"
+                                   "    rest: {label: t0, animation: 0, time: 0}\n"
+                                   "    targets:\n"
+                                   "      - {label: t9, animation: 1, time: 9.5}\n"));
+  ASSERT_EQ(specs.size(), 2u);
+  // The same shape as the built-in one, but for its name and provenance.
+  const ShapeSpec sydney = DefaultShapeSpecs()[1];
+  ASSERT_EQ(sydney.name, "sydney");
+  EXPECT_EQ(specs[0].file, sydney.file);
+  EXPECT_EQ(specs[0].family, sydney.family);
+  EXPECT_EQ(specs[0].rest.keyframe, sydney.rest.keyframe);
+  EXPECT_EQ(specs[0].rest.animation, -1);
+  ASSERT_EQ(specs[0].targets.size(), 1u);
+  EXPECT_EQ(specs[0].targets[0].label, sydney.targets[0].label);
+  EXPECT_EQ(specs[0].targets[0].keyframe, sydney.targets[0].keyframe);
+  EXPECT_EQ(specs[1].file, dir_ / "models/mine.x");
+  EXPECT_EQ(specs[1].licence, "CC0");
+  EXPECT_EQ(specs[1].rest.animation, 0);
+  EXPECT_EQ(specs[1].targets[0].animation, 1);
+  EXPECT_DOUBLE_EQ(specs[1].targets[0].time, 9.5);
+  EXPECT_EQ(specs[1].targets[0].keyframe, -1);
+}
+
+TEST_F(ShapeFileTest, EveryMistakeIsNamedWithItsLineAndKey) {
+  const std::string shape =
+      "  - name: a\n    family: humanoid\n    file: m.x\n    rest: {label: r, keyframe: 0}\n";
+  struct Case {
+    std::string text, expected;
+  };
+  const std::vector<Case> cases = {
+      {"format: vbutcher-shapes\nversion: 2\nshapes: []\n", "version: 2 is not supported"},
+      {std::string(kHeader) + shape, "shapes[0].targets"},
+      {std::string(kHeader) + shape + "    targets: []\n", "1 to 64 poses"},
+      {std::string(kHeader) + shape +
+           "    targets: [{label: t, keyframe: 1, animation: 0, time: 1}]\n",
+       "either animation and time"},
+      {std::string(kHeader) + shape + "    targets: [{label: t}]\n", "either animation and time"},
+      {std::string(kHeader) + shape + "    targets: [{label: r, keyframe: 1}]\n",
+       "'r' is used twice"},
+      {std::string(kHeader) + shape + "    targets: [{label: t, keyfram: 1}]\n",
+       "shapes[0].targets[0].keyfram: unknown key"},
+      {std::string(kHeader) + shape + "    targets: [{label: t, animation: 0, time: -1}]\n",
+       "shapes[0].targets[0].time"},
+      {std::string(kHeader) + shape + "    targets: [{label: t, animation: 0}]\n",
+       "shapes[0].targets[0].time"},
+      {std::string(kHeader) + shape + "    targets: [{label: 't/x', keyframe: 1}]\n",
+       "is not 1 to 64 letters"},
+      {std::string(kHeader) + shape + "    targets: [{label: t, keyframe: 1}]\n" + shape +
+           "    targets: [{label: t, keyframe: 1}]\n",
+       "'a' is listed twice"},
+      {std::string(kHeader) + "  - name: lamb\n    family: x\n", "shapes[0].name"},
+      {std::string(kHeader) + "  - {name: b, family: h, file: '', rest: {label: r, keyframe: 0}, "
+                              "targets: [{label: t, keyframe: 1}]}\n",
+       "shapes[0].file: is empty"},
+      {"format: vbutcher-shapes\nversion: 1\nshapes: {a: 1}\n", "expected a list of 1 to 64"},
+  };
+  for (const Case& c : cases) {
+    const std::string message = ErrorFor(c.text);
+    EXPECT_NE(message.find(c.expected), std::string::npos) << c.text << "\n-> " << message;
+    EXPECT_NE(message.find("shapes.yaml:"), std::string::npos) << message;
   }
 }
 

@@ -7,13 +7,16 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <assimp/Importer.hpp>
+#include <cctype>
 #include <cmath>
 #include <functional>
 #include <map>
 #include <numbers>
+#include <set>
 
-#include "io/error.h"
 #include "geometry/mesh_measures.h"
+#include "io/error.h"
+#include "io/yaml_reader.h"
 #include "morph/feature_association.h"
 #include "morph/point_index.h"
 
@@ -108,6 +111,106 @@ std::vector<ShapeSpec> DefaultShapeSpecs() {
        .rest = frame(0),
        .targets = {frame(76), frame(100), frame(124), frame(140)}},
   };
+}
+
+namespace {
+
+// Whether every key of mapping @p node is one of @p known; else fails naming the first other.
+void ExpectKeys(const io::YamlReader& r, const YAML::Node& node, const std::string& key,
+                const std::set<std::string>& known) {
+  if (!node.IsMap()) r.Fail(node, key, "expected a mapping");
+  for (const auto& entry : node) {
+    const std::string name = entry.first.IsScalar() ? entry.first.Scalar() : std::string();
+    if (known.count(name) == 0) {
+      std::string list;
+      for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+      r.Fail(entry.first, key.empty() ? name : key + "." + name,
+             "unknown key (known: " + list + ")");
+    }
+  }
+}
+
+bool IsName(const std::string& s) {
+  return !s.empty() && s.size() <= 64 && std::all_of(s.begin(), s.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) != 0 || c == '_' || c == '-';
+  });
+}
+
+ShapePose ReadPose(const io::YamlReader& r, const YAML::Node& node, const std::string& key) {
+  ExpectKeys(r, node, key, {"label", "animation", "time", "keyframe"});
+  ShapePose pose;
+  pose.label = r.Scalar<std::string>(r.Child(node, "label", key), key + ".label");
+  if (!IsName(pose.label))
+    r.Fail(node["label"], key + ".label",
+           "'" + io::Excerpt(pose.label) + "' is not 1 to 64 letters, digits, '_' or '-'");
+  const bool skeletal = node["animation"] || node["time"];
+  const bool keyframed = static_cast<bool>(node["keyframe"]);
+  if (skeletal == keyframed)
+    r.Fail(node, key, "give either animation and time (skeletal) or keyframe, not both");
+  if (skeletal) {
+    pose.animation = r.IntInRange(r.Child(node, "animation", key), key + ".animation", 0, 1 << 20);
+    pose.time = r.InRange(r.Child(node, "time", key), key + ".time", 0.0, 1e12);
+  } else {
+    pose.keyframe = r.IntInRange(node["keyframe"], key + ".keyframe", 0, 1 << 20);
+  }
+  return pose;
+}
+
+}  // namespace
+
+std::vector<ShapeSpec> LoadShapeSpecs(const std::filesystem::path& path) {
+  const YAML::Node root = io::YamlReader::LoadFile(path, "shape file");
+  const io::YamlReader r(path.string());
+  ExpectKeys(r, root, "", {"format", "version", "shapes"});
+  r.ExpectFormat(root, "vbutcher-shapes", 1);
+  const YAML::Node list = r.Child(root, "shapes", "");
+  if (!list.IsSequence() || list.size() == 0 || list.size() > kMaxFileShapes)
+    r.Fail(list, "shapes", "expected a list of 1 to " + std::to_string(kMaxFileShapes) + " shapes");
+  const std::filesystem::path folder = path.parent_path();
+  std::vector<ShapeSpec> specs;
+  std::set<std::string> names;
+  for (std::size_t k = 0; k < list.size(); ++k) {
+    const std::string key = "shapes[" + std::to_string(k) + "]";
+    const YAML::Node node = list[k];
+    ExpectKeys(r, node, key, {"name", "family", "file", "package", "licence", "rest", "targets"});
+    ShapeSpec spec;
+    spec.name = r.Scalar<std::string>(r.Child(node, "name", key), key + ".name");
+    if (!IsName(spec.name) || spec.name == "lamb")
+      r.Fail(
+          node["name"], key + ".name",
+          "'" + io::Excerpt(spec.name) +
+              "' is not 1 to 64 letters, digits, '_' or '-', or is 'lamb' (the synthetic lambs)");
+    if (!names.insert(spec.name).second)
+      r.Fail(node["name"], key + ".name", "'" + spec.name + "' is listed twice");
+    spec.family = r.Scalar<std::string>(r.Child(node, "family", key), key + ".family");
+    if (!IsName(spec.family))
+      r.Fail(node["family"], key + ".family",
+             "'" + io::Excerpt(spec.family) + "' is not 1 to 64 letters, digits, '_' or '-'");
+    const std::string file = r.Scalar<std::string>(r.Child(node, "file", key), key + ".file");
+    if (file.empty()) r.Fail(node["file"], key + ".file", "is empty");
+    spec.file =
+        std::filesystem::path(file).is_absolute() ? std::filesystem::path(file) : folder / file;
+    spec.package = node["package"] ? r.Scalar<std::string>(node["package"], key + ".package")
+                                   : std::string("(not packaged)");
+    spec.licence = node["licence"] ? r.Scalar<std::string>(node["licence"], key + ".licence")
+                                   : std::string("(not given)");
+    spec.rest = ReadPose(r, r.Child(node, "rest", key), key + ".rest");
+    const YAML::Node targets = r.Child(node, "targets", key);
+    if (!targets.IsSequence() || targets.size() == 0 || targets.size() > kMaxShapePoses)
+      r.Fail(targets, key + ".targets",
+             "expected a list of 1 to " + std::to_string(kMaxShapePoses) + " poses");
+    std::set<std::string> labels{spec.rest.label};
+    for (std::size_t t = 0; t < targets.size(); ++t) {
+      const std::string pose_key = key + ".targets[" + std::to_string(t) + "]";
+      ShapePose pose = ReadPose(r, targets[t], pose_key);
+      if (!labels.insert(pose.label).second)
+        r.Fail(targets[t]["label"], pose_key + ".label",
+               "'" + pose.label + "' is used twice in this shape (the rest pose's included)");
+      spec.targets.push_back(std::move(pose));
+    }
+    specs.push_back(std::move(spec));
+  }
+  return specs;
 }
 
 geometry::TriangleMesh LoadPosedModel(const std::filesystem::path& file, const ShapePose& pose) {

@@ -33,6 +33,22 @@ struct ShapeSpec {
 /// The benchmark's third-party shapes (docs/benchmarks.md lists origin and licence).
 std::vector<ShapeSpec> DefaultShapeSpecs();
 
+/// The most shapes a shape file may list, and the most poses a shape may have.
+inline constexpr int kMaxFileShapes = 64;
+inline constexpr int kMaxShapePoses = 64;
+
+/// Shapes listed in a YAML file (`format: vbutcher-shapes`, `version: 1`; docs/benchmarks.md
+/// shows one), for bodies of one's own: each with a name (letters, digits, '_' or '-'), a
+/// family, a model file (relative to the YAML file's folder unless absolute; libassimp reads
+/// it), optionally its package and licence, a rest pose and at least one target pose. A pose
+/// is {label, animation, time} (skeletal: the animation's index and a time in its ticks) or
+/// {label, keyframe} (vertex animation). Only the file is read here; the model is read when
+/// the case is built (LoadPosedModel).
+/// @throws InputError naming the file, line and key for a file that cannot be read, a key
+///   missing, unknown or repeated, a value out of range, a name or label repeated, or a pose
+///   that is neither kind or both.
+std::vector<ShapeSpec> LoadShapeSpecs(const std::filesystem::path& path);
+
 /// Every mesh of @p file in @p pose, triangulated, in the scene's root frame and the file's own
 /// units, concatenated in the file's mesh order. The vertex and face order are the same for
 /// every pose of a file. No vertices are welded: a model's seams stay open (WrapSurface closes
