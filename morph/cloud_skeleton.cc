@@ -133,6 +133,11 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
       lengths.push_back(std::sqrt(d2[k]));
     }
   }
+  // Points on a handful of spots (duplicates, or a cloud the smoothing drew together) link
+  // to nothing: no spacing to read, no shape to follow.
+  if (lengths.empty())
+    throw InputError("skeleton: the points lie on " + std::to_string(n) +
+                     " spots or fewer than their neighbours; no shape to follow");
   std::vector<double> sorted = lengths;
   std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
                    sorted.end());
@@ -165,6 +170,12 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
   for (int i = 0; i < n; ++i)
     keep[static_cast<std::size_t>(i)] =
         piece_size[static_cast<std::size_t>(piece[static_cast<std::size_t>(i)])] >= min_piece;
+  if (std::none_of(keep.begin(), keep.end(), [](bool k) { return k; })) {
+    throw InputError("skeleton: the cloud's largest linked piece has " +
+                     std::to_string(*std::max_element(piece_size.begin(), piece_size.end())) +
+                     " downsampled points, fewer than the " + std::to_string(min_piece) +
+                     " a body needs; no body to follow");
+  }
   boost::disjoint_sets_with_storage<> joined(static_cast<std::size_t>(num_pieces));
   auto group_of = [&](int i) {
     return static_cast<int>(joined.find_set(piece[static_cast<std::size_t>(i)]));

@@ -27,7 +27,8 @@ struct CloudSkeletonOptions {
 /// node at its centroid, and pieces touching across neighbouring bands are joined. Cycles
 /// (from bridging or noise) are cut by a minimum spanning tree: a carcass skeleton is a tree.
 /// Node support indexes the input cloud's columns.
-/// @throws InputError when the cloud has fewer than 50 points or no extent.
+/// @throws InputError when the cloud has fewer than 50 points or no extent, when its points
+///   lie on too few spots to link, or when no linked piece holds options.min_piece of them.
 SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& points,
                             const CloudSkeletonOptions& options = {});
 

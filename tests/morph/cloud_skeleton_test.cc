@@ -70,5 +70,24 @@ TEST(CloudSkeletonTest, RefusesTinyOrFlatInput) {
   EXPECT_THROW(CloudSkeleton(Eigen::Matrix3Xd::Zero(3, 100)), InputError);
 }
 
+// Enough points, but on a few spots: 49 copies of one point and one apart, or three spots of
+// 20. Each read past its arrays before (a segfault in `vbutcher morph`); now an error that
+// says why.
+TEST(CloudSkeletonTest, RefusesAFewSpotsWithAnErrorNotACrash) {
+  Eigen::Matrix3Xd two = Eigen::Matrix3Xd::Zero(3, 50);
+  two.col(49) = Eigen::Vector3d(1, 0, 0);
+  Eigen::Matrix3Xd three = Eigen::Matrix3Xd::Zero(3, 60);
+  three.middleCols(20, 20).colwise() = Eigen::Vector3d(1, 0, 0);
+  three.rightCols(20).colwise() = Eigen::Vector3d(0, 1, 0);
+  for (const Eigen::Matrix3Xd* cloud : {&two, &three}) {
+    try {
+      CloudSkeleton(*cloud);
+      ADD_FAILURE() << cloud->cols() << " points: no error";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("no body to follow"), std::string::npos) << e.what();
+    }
+  }
+}
+
 }  // namespace
 }  // namespace vb::morph

@@ -184,6 +184,18 @@ TEST_F(MorpherTest, SaysWhyOnABadTargetAndGoesOn) {
   const CarcassResult bad = morpher.Morph(nan, {});
   EXPECT_FALSE(bad.ok);
   EXPECT_FALSE(bad.error.empty());
+  // Enough points on three spots (a segfault in the skeleton before).
+  Eigen::Matrix3Xd spots = Eigen::Matrix3Xd::Zero(3, 60);
+  spots.middleCols(20, 20).colwise() = Eigen::Vector3d(0.5, 0, 0);
+  spots.rightCols(20).colwise() = Eigen::Vector3d(0, 0.5, 0);
+  const CarcassResult few_spots = morpher.Morph(spots, {});
+  EXPECT_FALSE(few_spots.ok);
+  EXPECT_NE(few_spots.error.find("skeleton"), std::string::npos) << few_spots.error;
+  // And the morpher still morphs.
+  perception::PosedCarcass truth;
+  const CarcassResult next =
+      morpher.Morph(test::HangingCloud(*carcass_, 4000037u, 0.004, &truth), {});
+  EXPECT_TRUE(next.ok) << next.error;
 }
 
 }  // namespace
