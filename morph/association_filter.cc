@@ -15,26 +15,34 @@ namespace vb::morph {
 namespace {
 
 // The rigidity residual of eq. (12) at one point over its remaining neighbours, with the
-// rotation fitted to the same weighted edges (Kabsch).
+// rotation fitted to the same weighted edges (Kabsch). An edge of no length on the template
+// side (two pairs sharing a template point, as target points paired back to their nearest
+// vertex often do) says nothing of rigidity and is left out; a point with no other edge
+// scores 0.
 double RigidityResidual(const Eigen::Matrix3Xd& a1, const Eigen::Matrix3Xd& a2, int i,
                         std::span<const int> neighbours) {
-  if (neighbours.empty()) return 0.0;
+  constexpr double kNoLength = 1e-24;  // squared
   Eigen::Matrix3d cross = Eigen::Matrix3d::Zero();
+  int edges = 0;
   for (int j : neighbours) {
     const Eigen::Vector3d e1 = a1.col(i) - a1.col(j);
+    if (!(e1.squaredNorm() > kNoLength)) continue;
     const Eigen::Vector3d e2 = a2.col(i) - a2.col(j);
-    cross += (e2 * e1.transpose()) / std::max(e1.squaredNorm(), 1e-24);
+    cross += (e2 * e1.transpose()) / e1.squaredNorm();
+    ++edges;
   }
+  if (edges == 0) return 0.0;
   const Eigen::Matrix3d R = NearestRotation(
       Eigen::JacobiSVD<Eigen::Matrix3d>(cross, Eigen::ComputeFullU | Eigen::ComputeFullV));
   double r = 0.0;
   for (int j : neighbours) {
     const Eigen::Vector3d e1 = a1.col(i) - a1.col(j);
+    if (!(e1.squaredNorm() > kNoLength)) continue;
     const Eigen::Vector3d e2 = a2.col(i) - a2.col(j);
-    r += (e2 - R * e1).squaredNorm() / std::max(e1.squaredNorm(), 1e-24);
+    r += (e2 - R * e1).squaredNorm() / e1.squaredNorm();
   }
   // Per edge: a point whose neighbours were trimmed keeps a comparable score.
-  return r / static_cast<double>(neighbours.size());
+  return r / static_cast<double>(edges);
 }
 
 // Lists of ints, one per point, each in its own fixed slice of one array; removing an entry

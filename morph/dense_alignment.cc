@@ -209,6 +209,28 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     }
     return FilterAssociations(a1, a2, options.filter);
   };
+  // The reverse pairs kept: of the target points paired back to one template vertex, the
+  // nearest; several pulling one vertex would weigh it several times. Eq. (12) is not run on
+  // them: its rigidity graph is built on the side pairs start from, and these start from
+  // target points but land on the template's vertices, spaced otherwise (decisions.md).
+  std::vector<int> nearest_back(static_cast<std::size_t>(posed.V.cols()), -1);
+  const auto one_per_vertex = [&](const DenseAssociation& found) {
+    std::vector<bool> keep(found.source.size(), false);
+    const auto distance2 = [&](std::size_t k) {
+      return (points.col(found.source[k]) - posed.V.col(found.target[k])).squaredNorm();
+    };
+    for (std::size_t k = 0; k < found.source.size(); ++k) {
+      int& best = nearest_back[static_cast<std::size_t>(found.target[k])];
+      if (best < 0 || distance2(k) < distance2(static_cast<std::size_t>(best)))
+        best = static_cast<int>(k);
+    }
+    for (std::size_t k = 0; k < found.source.size(); ++k) {
+      int& best = nearest_back[static_cast<std::size_t>(found.target[k])];
+      if (best >= 0) keep[static_cast<std::size_t>(best)] = true;
+      best = -1;  // cleared for the next round
+    }
+    return keep;
+  };
   DeformationScratch scratch;  // one for every round's solve
   for (int round = 0; round < options.rounds; ++round) {
     if (options.unbias_plane_points) curvature = geometry::CurvatureSums(posed, posed.N);
@@ -232,7 +254,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
                               options.association);
         seconds[1][0] = Since(begin);
         begin = std::chrono::steady_clock::now();
-        back_kept = filter(back.target, back.source);  // back.source are target points
+        back_kept = one_per_vertex(back);  // back.source are target points
       }
       seconds[way][1] = Since(begin);
     };

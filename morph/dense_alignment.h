@@ -79,9 +79,9 @@ struct DenseOptions {
   /// as the noise grows.
   bool unbias_plane_points = true;
   /// Target points associated back to the posed template each round (eq. 11 with the roles
-  /// swapped, then the same filter), evenly spread; 0 leaves only the template's own. The
-  /// target's points make every part of the target pull, including ends the template falls
-  /// short of.
+  /// swapped), evenly spread; of those paired to one vertex, the nearest is kept; 0 leaves
+  /// only the template's own. The target's points make every part of the target pull,
+  /// including ends the template falls short of.
   int reverse_samples = 2000;
   /// A template vertex's pair is dropped when the vertex lies farther along its target
   /// point's plane than this many plane-point radii from the point. A radius is
@@ -123,7 +123,7 @@ struct DenseRound {
   int associated = 0;          ///< pairs found by eq. (11)
   int kept = 0;                ///< left after eq. (12)
   int reverse_associated = 0;  ///< target points paired back to the template
-  int reverse_kept = 0;        ///< of those, left after eq. (12)
+  int reverse_kept = 0;        ///< of those, the nearest to each vertex paired
   /// Of the template's pairs kept by eq. (12), those then dropped as too far along the
   /// target's plane (DenseOptions::max_tangent_reach): kept - beyond_reach make constraints.
   int beyond_reach = 0;

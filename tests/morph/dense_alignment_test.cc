@@ -446,6 +446,31 @@ TEST(FilterAssociationsTest, KeepsConsistentPairs) {
   for (bool k : kept) EXPECT_TRUE(k);
 }
 
+// Pairs that share a point on the first side (target points paired back to one template
+// vertex) make edges of no length there, which say nothing of rigidity. Before, each such
+// edge scored about 1e18, the running sums lost every other residual, and the trimming kept
+// or dropped at random; now the consistent pairs stay and a wrong one still goes.
+TEST(FilterAssociationsTest, PairsSharingAFirstPointDoNotUpsetTheTrimming) {
+  const Eigen::Matrix3Xd sphere = SpherePoints(800, 4);
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 0, 1).normalized()).matrix();
+  // Every 4th point twice on the first side, its two partners 1 mm apart on the second.
+  const Eigen::Index n = sphere.cols() + sphere.cols() / 4;
+  Eigen::Matrix3Xd a1(3, n), a2(3, n);
+  a1.leftCols(sphere.cols()) = sphere;
+  a2.leftCols(sphere.cols()) = R * sphere;
+  for (Eigen::Index k = 0; k < sphere.cols() / 4; ++k) {
+    a1.col(sphere.cols() + k) = sphere.col(4 * k);
+    a2.col(sphere.cols() + k) = R * sphere.col(4 * k) + Eigen::Vector3d(0.001, 0, 0);
+  }
+  const Eigen::Index wrong = 101;
+  a2.col(wrong) = R * sphere.col(wrong) + 0.3 * sphere.col(wrong);
+  const std::vector<bool> kept = FilterAssociations(a1, a2);
+  EXPECT_FALSE(kept[static_cast<std::size_t>(wrong)]);
+  const auto dropped = std::count(kept.begin(), kept.end(), false);
+  // The wrong pair and a few of its neighbours, not the shared ones.
+  EXPECT_LE(dropped, 3) << dropped << " of " << n << " dropped";
+}
+
 using DenseAlignmentTest = test::LambTemplateTest;
 
 // The lamb posed from @p seed as a mesh with 2 mm noise along its normals, and the coarse
