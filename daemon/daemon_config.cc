@@ -85,14 +85,8 @@ class Section {
       node_ = YAML::Node();
       return;
     }
-    for (const auto& entry : node_) {
-      problems_->Try([&] {
-        const std::string k = r_.Scalar<std::string>(entry.first, key_ + ".?");
-        bool known = false;
-        for (const char* allowed : keys) known |= k == allowed;
-        if (!known) r_.Fail(entry.first, key_ + "." + k, "unknown key");
-      });
-    }
+    for (const auto& entry : node_)
+      problems_->Try([&] { r_.ExpectKnownKey(entry.first, key_, keys); });
   }
   /// The child @p name; undefined (false) when it or the whole section is absent.
   YAML::Node operator[](const char* name) const {
@@ -247,14 +241,7 @@ DaemonConfig LoadDaemonConfig(const std::filesystem::path& path) {
   const io::YamlReader r(path.string());
   r.ExpectFormat(root, "virtualbutcherd-config", DaemonConfig::kFormatVersion);
   Problems problems(path.string());
-  for (const auto& entry : root) {
-    problems.Try([&] {
-      const std::string k = r.Scalar<std::string>(entry.first, "?");
-      bool known = false;
-      for (const char* allowed : kTopKeys) known |= k == allowed;
-      if (!known) r.Fail(entry.first, k, "unknown key");
-    });
-  }
+  for (const auto& entry : root) problems.Try([&] { r.ExpectKnownKey(entry.first, "", kTopKeys); });
   DaemonConfig c;
   c.source = path;
   const std::filesystem::path folder = path.parent_path();

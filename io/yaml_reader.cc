@@ -131,6 +131,18 @@ Eigen::Isometry3d YamlReader::Isometry(const YAML::Node& node, const std::string
   return X;
 }
 
+void YamlReader::ExpectKnownKey(const YAML::Node& entry_key, const std::string& parent_key,
+                                std::span<const char* const> known) const {
+  const std::string name =
+      Scalar<std::string>(entry_key, parent_key.empty() ? "?" : parent_key + ".?");
+  for (const char* k : known)
+    if (name == k) return;
+  std::string list;
+  for (const char* k : known) list += (list.empty() ? "" : ", ") + std::string(k);
+  Fail(entry_key, parent_key.empty() ? name : parent_key + "." + name,
+       "unknown key (known: " + list + ")");
+}
+
 void YamlReader::ExpectFormat(const YAML::Node& root, const std::string& format,
                               int version) const {
   const auto found = Scalar<std::string>(Child(root, "format", ""), "format");

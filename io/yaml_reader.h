@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <filesystem>
+#include <span>
 #include <string>
 
 #include "io/error.h"
@@ -50,6 +51,11 @@ class YamlReader {
   /// A rigid transform written as {translation: [x, y, z], rotation_wxyz: [w, x, y, z]}; the
   /// quaternion must be unit length within 1e-3 (it is then normalised).
   Eigen::Isometry3d Isometry(const YAML::Node& node, const std::string& key) const;
+  /// Fails naming @p entry_key (a key of the mapping whose own key is @p parent_key, "" at
+  /// the top) unless it is one of @p known: a misspelt key is an error, not an ignored
+  /// setting. The message lists the known keys.
+  void ExpectKnownKey(const YAML::Node& entry_key, const std::string& parent_key,
+                      std::span<const char* const> known) const;
   /// Checks @p format and @p version keys at the top of @p root.
   void ExpectFormat(const YAML::Node& root, const std::string& format, int version) const;
 

@@ -15,10 +15,9 @@ namespace vb::morph {
 namespace {
 
 // The rigidity residual of eq. (12) at one point over its remaining neighbours, with the
-// rotation fitted to the same weighted edges (Kabsch). An edge of no length on the template
-// side (two pairs sharing a template point, as target points paired back to their nearest
-// vertex often do) says nothing of rigidity and is left out; a point with no other edge
-// scores 0.
+// rotation fitted to the same weighted edges (Kabsch). An edge of no length on the first side
+// (two pairs sharing a point there) says nothing of rigidity and is left out; a point with no
+// other edge scores 0.
 double RigidityResidual(const Eigen::Matrix3Xd& a1, const Eigen::Matrix3Xd& a2, int i,
                         std::span<const int> neighbours) {
   constexpr double kNoLength = 1e-24;  // squared

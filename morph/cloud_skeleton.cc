@@ -201,16 +201,20 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
       }
     }
     if (pair[0] < 0) {
-      // No piece within reach of the kd-query: fall back to an exhaustive search.
+      // No piece within reach of the kd-query: every other kept point's nearest in the group,
+      // from a kd-tree of the group (n log n; a search over every pair is n squared).
+      std::vector<int> members;
+      for (int j = 0; j < n; ++j)
+        if (keep[static_cast<std::size_t>(j)] && group_of(j) == group) members.push_back(j);
+      const Eigen::Matrix3Xd member_points = points(Eigen::all, members);
+      const PointIndex member_index(member_points);
       for (int i = 0; i < n; ++i) {
         if (!keep[static_cast<std::size_t>(i)] || group_of(i) == group) continue;
-        for (int j = 0; j < n; ++j) {
-          if (!keep[static_cast<std::size_t>(j)] || group_of(j) != group) continue;
-          const double dd = (points.col(i) - points.col(j)).squaredNorm();
-          if (dd < best) {
-            best = dd;
-            pair = {i, j};
-          }
+        const int j = members[static_cast<std::size_t>(member_index.Nearest(points.col(i)))];
+        const double dd = (points.col(i) - points.col(j)).squaredNorm();
+        if (dd < best) {
+          best = dd;
+          pair = {i, j};
         }
       }
     }

@@ -213,16 +213,23 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   // nearest; several pulling one vertex would weigh it several times. Eq. (12) is not run on
   // them: its rigidity graph is built on the side pairs start from, and these start from
   // target points but land on the template's vertices, spaced otherwise (decisions.md).
-  std::vector<int> nearest_back(static_cast<std::size_t>(posed.V.cols()), -1);
+  // Per template vertex, its nearest reverse pair so far (-1: none) and that pair's squared
+  // length; every entry a round sets it also clears.
+  std::vector<int> nearest_back;
+  std::vector<double> nearest_back_d2;
+  if (!reverse_samples.empty()) {
+    nearest_back.assign(static_cast<std::size_t>(posed.V.cols()), -1);
+    nearest_back_d2.assign(nearest_back.size(), 0.0);
+  }
   const auto one_per_vertex = [&](const DenseAssociation& found) {
     std::vector<bool> keep(found.source.size(), false);
-    const auto distance2 = [&](std::size_t k) {
-      return (points.col(found.source[k]) - posed.V.col(found.target[k])).squaredNorm();
-    };
     for (std::size_t k = 0; k < found.source.size(); ++k) {
-      int& best = nearest_back[static_cast<std::size_t>(found.target[k])];
-      if (best < 0 || distance2(k) < distance2(static_cast<std::size_t>(best)))
-        best = static_cast<int>(k);
+      const auto v = static_cast<std::size_t>(found.target[k]);
+      const double d2 = (points.col(found.source[k]) - posed.V.col(found.target[k])).squaredNorm();
+      if (nearest_back[v] < 0 || d2 < nearest_back_d2[v]) {
+        nearest_back[v] = static_cast<int>(k);
+        nearest_back_d2[v] = d2;
+      }
     }
     for (std::size_t k = 0; k < found.source.size(); ++k) {
       int& best = nearest_back[static_cast<std::size_t>(found.target[k])];

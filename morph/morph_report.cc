@@ -90,7 +90,7 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
                         {"kept_after_filter", round.kept},
                         {"beyond_reach", round.beyond_reach},
                         {"reverse_associated", round.reverse_associated},
-                        {"reverse_kept_after_filter", round.reverse_kept},
+                        {"reverse_kept", round.reverse_kept},
                         {"mean_plane_distance_rel", round.mean_plane_distance},
                         {"association_s", round.association_seconds},
                         {"filter_s", round.filter_seconds},

@@ -210,19 +210,12 @@ void WriteXyz(const std::filesystem::path& path, const Eigen::Matrix3Xd& P,
 }
 
 // The built-in shapes and the shape file's (none without one).
-// @throws InputError for a shape file that cannot be read, a file shape named as a built-in
-//   one, or a name in options.shapes that is no shape's.
+// @throws InputError for a shape file that cannot be read (LoadShapeSpecs), or a name in
+//   options.shapes that is no shape's.
 std::vector<ShapeSpec> ShapeSpecs(const ShapeBenchOptions& options) {
   std::vector<ShapeSpec> specs = DefaultShapeSpecs();
-  const std::size_t built_in = specs.size();
   if (!options.shape_file.empty()) {
-    for (ShapeSpec& spec : LoadShapeSpecs(options.shape_file)) {
-      for (std::size_t k = 0; k < built_in; ++k)
-        if (specs[k].name == spec.name)
-          throw InputError(options.shape_file.string() + ": shape '" + spec.name +
-                           "' is already a built-in shape's name; call it something else");
-      specs.push_back(std::move(spec));
-    }
+    for (ShapeSpec& spec : LoadShapeSpecs(options.shape_file)) specs.push_back(std::move(spec));
   }
   std::string names;
   for (const ShapeSpec& spec : specs) names += spec.name + " ";

@@ -71,8 +71,7 @@ TEST(CloudSkeletonTest, RefusesTinyOrFlatInput) {
 }
 
 // Enough points, but on a few spots: 49 copies of one point and one apart, or three spots of
-// 20. Each read past its arrays before (a segfault in `vbutcher morph`); now an error that
-// says why.
+// 20. An error that says why, not a read past the skeleton's arrays.
 TEST(CloudSkeletonTest, RefusesAFewSpotsWithAnErrorNotACrash) {
   Eigen::Matrix3Xd two = Eigen::Matrix3Xd::Zero(3, 50);
   two.col(49) = Eigen::Vector3d(1, 0, 0);

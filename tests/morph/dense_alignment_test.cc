@@ -446,10 +446,10 @@ TEST(FilterAssociationsTest, KeepsConsistentPairs) {
   for (bool k : kept) EXPECT_TRUE(k);
 }
 
-// Pairs that share a point on the first side (target points paired back to one template
-// vertex) make edges of no length there, which say nothing of rigidity. Before, each such
-// edge scored about 1e18, the running sums lost every other residual, and the trimming kept
-// or dropped at random; now the consistent pairs stay and a wrong one still goes.
+// Pairs that share a point on the first side make edges of no length there, which say
+// nothing of rigidity: the consistent pairs stay and a wrong one still goes. (Scored as
+// edges, each would read about 1e18 and leave the running mean and deviation rounding
+// noise.)
 TEST(FilterAssociationsTest, PairsSharingAFirstPointDoNotUpsetTheTrimming) {
   const Eigen::Matrix3Xd sphere = SpherePoints(800, 4);
   const Eigen::Matrix3d R = Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 0, 1).normalized()).matrix();
@@ -466,9 +466,8 @@ TEST(FilterAssociationsTest, PairsSharingAFirstPointDoNotUpsetTheTrimming) {
   a2.col(wrong) = R * sphere.col(wrong) + 0.3 * sphere.col(wrong);
   const std::vector<bool> kept = FilterAssociations(a1, a2);
   EXPECT_FALSE(kept[static_cast<std::size_t>(wrong)]);
-  const auto dropped = std::count(kept.begin(), kept.end(), false);
-  // The wrong pair and a few of its neighbours, not the shared ones.
-  EXPECT_LE(dropped, 3) << dropped << " of " << n << " dropped";
+  // The wrong pair alone (measured: 1 dropped), not the shared ones.
+  EXPECT_EQ(std::count(kept.begin(), kept.end(), false), 1);
 }
 
 using DenseAlignmentTest = test::LambTemplateTest;
@@ -594,7 +593,8 @@ TEST_F(DenseAlignmentTest, TargetPointsPullTheTemplateOverTheirWholeSurface) {
     EXPECT_TRUE(dense.ok) << dense.error;
     if (!dense.ok) return 1.0;
     if (reverse_samples > 0) {
-      EXPECT_GT(dense.rounds.back().reverse_kept, 0.8 * dense.rounds.back().reverse_associated);
+      // One pair per vertex: few of them share one here (measured: 2,561 of 2,576 kept).
+      EXPECT_GT(dense.rounds.back().reverse_kept, 0.95 * dense.rounds.back().reverse_associated);
     } else {
       EXPECT_EQ(dense.rounds.back().reverse_associated, 0);
     }

@@ -184,7 +184,7 @@ TEST_F(MorpherTest, SaysWhyOnABadTargetAndGoesOn) {
   const CarcassResult bad = morpher.Morph(nan, {});
   EXPECT_FALSE(bad.ok);
   EXPECT_FALSE(bad.error.empty());
-  // Enough points on three spots (a segfault in the skeleton before).
+  // Enough points, on three spots: no shape for the skeleton to follow.
   Eigen::Matrix3Xd spots = Eigen::Matrix3Xd::Zero(3, 60);
   spots.middleCols(20, 20).colwise() = Eigen::Vector3d(0.5, 0, 0);
   spots.rightCols(20).colwise() = Eigen::Vector3d(0, 0.5, 0);

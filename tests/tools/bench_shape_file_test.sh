@@ -59,6 +59,6 @@ set +e
   > /dev/null 2> "$work/err.txt"
 status=$?
 set -e
-[[ $status == 2 ]] && grep -q "shapes.yaml: shape 'wuson' is already a built-in shape's name" "$work/err.txt" ||
+[[ $status == 2 ]] && grep -q "shapes.yaml:4: shapes\[0\].name: 'wuson' is a built-in shape's name" "$work/err.txt" ||
   { echo "FAIL: a built-in name: exit $status"; cat "$work/err.txt"; exit 1; }
 echo "bench shapes --shape-file: ok"

@@ -174,7 +174,8 @@ TEST_F(ShapeFileTest, EveryMistakeIsNamedWithItsLineAndKey) {
     std::string text, expected;
   };
   const std::vector<Case> cases = {
-      {"format: vbutcher-shapes\nversion: 2\nshapes: []\n", "version: 2 is not supported"},
+      {"format: vbutcher-shapes\nversion: 2\nadded_in_2: 1\nshapes: []\n",
+       "version: 2 is not supported"},
       {std::string(kHeader) + shape, "shapes[0].targets"},
       {std::string(kHeader) + shape + "    targets: []\n", "1 to 64 poses"},
       {std::string(kHeader) + shape +
@@ -199,6 +200,17 @@ TEST_F(ShapeFileTest, EveryMistakeIsNamedWithItsLineAndKey) {
                               "targets: [{label: t, keyframe: 1}]}\n",
        "shapes[0].file: is empty"},
       {"format: vbutcher-shapes\nversion: 1\nshapes: {a: 1}\n", "expected a list of 1 to 64"},
+      {std::string(kHeader) +
+           "  - {name: bcn, family: h, file: m.x, rest: {label: r, keyframe: 0}, "
+           "targets: [{label: t, keyframe: 1}]}\n",
+       "shapes.yaml:4: shapes[0].name: 'bcn' is a built-in shape's name"},
+      {std::string(kHeader) + shape +
+           "    package: 'a,b'\n    targets: [{label: t, keyframe: 1}]\n",
+       "shapes[0].package: 'a,b' is not up to 200 printable characters"},
+      {std::string(kHeader) +
+           "  - {name: b, family: h, file: 'x\"y.x', rest: {label: r, keyframe: 0}, "
+           "targets: [{label: t, keyframe: 1}]}\n",
+       "shapes[0].file"},
   };
   for (const Case& c : cases) {
     const std::string message = ErrorFor(c.text);

@@ -10,12 +10,14 @@
 #include <cctype>
 #include <cmath>
 #include <functional>
+#include <initializer_list>
 #include <map>
 #include <numbers>
 #include <set>
 
 #include "geometry/mesh_measures.h"
 #include "io/error.h"
+#include "io/read_limits.h"
 #include "io/yaml_reader.h"
 #include "morph/feature_association.h"
 #include "morph/point_index.h"
@@ -115,19 +117,25 @@ std::vector<ShapeSpec> DefaultShapeSpecs() {
 
 namespace {
 
-// Whether every key of mapping @p node is one of @p known; else fails naming the first other.
+// Fails unless every key of mapping @p node (whose own key is @p key) is one of @p known.
 void ExpectKeys(const io::YamlReader& r, const YAML::Node& node, const std::string& key,
-                const std::set<std::string>& known) {
+                std::initializer_list<const char*> known) {
   if (!node.IsMap()) r.Fail(node, key, "expected a mapping");
-  for (const auto& entry : node) {
-    const std::string name = entry.first.IsScalar() ? entry.first.Scalar() : std::string();
-    if (known.count(name) == 0) {
-      std::string list;
-      for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
-      r.Fail(entry.first, key.empty() ? name : key + "." + name,
-             "unknown key (known: " + list + ")");
-    }
-  }
+  for (const auto& entry : node) r.ExpectKnownKey(entry.first, key, known);
+}
+
+// Text for the CSV and the docs: at most 200 printable characters, none of them a comma, a
+// quote or a control character (the CSV is written unquoted).
+std::string CsvText(const io::YamlReader& r, const YAML::Node& node, const std::string& key) {
+  const auto text = r.Scalar<std::string>(node, key);
+  const bool plain =
+      text.size() <= 200 && std::all_of(text.begin(), text.end(), [](char c) {
+        return std::isprint(static_cast<unsigned char>(c)) != 0 && c != ',' && c != '"';
+      });
+  if (!plain)
+    r.Fail(node, key,
+           "'" + io::Excerpt(text) + "' is not up to 200 printable characters without ',' or '\"'");
+  return text;
 }
 
 bool IsName(const std::string& s) {
@@ -161,8 +169,9 @@ ShapePose ReadPose(const io::YamlReader& r, const YAML::Node& node, const std::s
 std::vector<ShapeSpec> LoadShapeSpecs(const std::filesystem::path& path) {
   const YAML::Node root = io::YamlReader::LoadFile(path, "shape file");
   const io::YamlReader r(path.string());
-  ExpectKeys(r, root, "", {"format", "version", "shapes"});
+  if (!root.IsMap()) r.Fail(root, "", "expected a mapping with format, version and shapes");
   r.ExpectFormat(root, "vbutcher-shapes", 1);
+  ExpectKeys(r, root, "", {"format", "version", "shapes"});
   const YAML::Node list = r.Child(root, "shapes", "");
   if (!list.IsSequence() || list.size() == 0 || list.size() > kMaxFileShapes)
     r.Fail(list, "shapes", "expected a list of 1 to " + std::to_string(kMaxFileShapes) + " shapes");
@@ -182,17 +191,22 @@ std::vector<ShapeSpec> LoadShapeSpecs(const std::filesystem::path& path) {
               "' is not 1 to 64 letters, digits, '_' or '-', or is 'lamb' (the synthetic lambs)");
     if (!names.insert(spec.name).second)
       r.Fail(node["name"], key + ".name", "'" + spec.name + "' is listed twice");
+    for (const ShapeSpec& built_in : DefaultShapeSpecs())
+      if (built_in.name == spec.name)
+        r.Fail(node["name"], key + ".name",
+               "'" + spec.name + "' is a built-in shape's name; call it something else");
     spec.family = r.Scalar<std::string>(r.Child(node, "family", key), key + ".family");
     if (!IsName(spec.family))
       r.Fail(node["family"], key + ".family",
              "'" + io::Excerpt(spec.family) + "' is not 1 to 64 letters, digits, '_' or '-'");
     const std::string file = r.Scalar<std::string>(r.Child(node, "file", key), key + ".file");
     if (file.empty()) r.Fail(node["file"], key + ".file", "is empty");
+    CsvText(r, node["file"], key + ".file");  // its name goes into the CSV's source column
     spec.file =
         std::filesystem::path(file).is_absolute() ? std::filesystem::path(file) : folder / file;
-    spec.package = node["package"] ? r.Scalar<std::string>(node["package"], key + ".package")
+    spec.package = node["package"] ? CsvText(r, node["package"], key + ".package")
                                    : std::string("(not packaged)");
-    spec.licence = node["licence"] ? r.Scalar<std::string>(node["licence"], key + ".licence")
+    spec.licence = node["licence"] ? CsvText(r, node["licence"], key + ".licence")
                                    : std::string("(not given)");
     spec.rest = ReadPose(r, r.Child(node, "rest", key), key + ".rest");
     const YAML::Node targets = r.Child(node, "targets", key);
@@ -218,6 +232,12 @@ geometry::TriangleMesh LoadPosedModel(const std::filesystem::path& file, const S
   if (!std::filesystem::is_regular_file(file)) {
     throw InputError(where + ": no such file (is its Debian package installed?)");
   }
+  // libassimp reads the whole file and every mesh in it: bounded as the project's own readers
+  // are (io::ReadLimits), before and after.
+  const io::ReadLimits limits = io::DefaultReadLimits();
+  const auto bytes = static_cast<std::int64_t>(std::filesystem::file_size(file));
+  io::CheckLimit(where, "bytes", bytes, static_cast<std::int64_t>(limits.max_file_bytes),
+                 "--max-file-mib");
   Assimp::Importer importer;
   if (pose.keyframe >= 0) importer.SetPropertyInteger(AI_CONFIG_IMPORT_GLOBAL_KEYFRAME, pose.keyframe);
   // Triangulate only: joining identical vertices would make the vertex order depend on the
@@ -244,6 +264,13 @@ geometry::TriangleMesh LoadPosedModel(const std::filesystem::path& file, const S
                      ": a keyframe was given, but the file is animated by its skeleton (give an "
                      "animation and a time)");
   }
+  std::int64_t scene_vertices = 0, scene_faces = 0;
+  for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+    scene_vertices += scene->mMeshes[m]->mNumVertices;
+    scene_faces += scene->mMeshes[m]->mNumFaces;
+  }
+  io::CheckLimit(where, "vertices", scene_vertices, limits.max_points, "--max-points");
+  io::CheckLimit(where, "faces", scene_faces, limits.max_faces, "--max-faces");
   std::map<std::string, const aiNodeAnim*> channels;
   if (pose.animation >= 0) {
     const aiAnimation& animation = *scene->mAnimations[pose.animation];

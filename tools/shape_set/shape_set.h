@@ -45,12 +45,14 @@ inline constexpr int kMaxShapePoses = 64;
 /// {label, keyframe} (vertex animation). Only the file is read here; the model is read when
 /// the case is built (LoadPosedModel).
 /// @throws InputError naming the file, line and key for a file that cannot be read, a key
-///   missing, unknown or repeated, a value out of range, a name or label repeated, or a pose
-///   that is neither kind or both.
+///   missing, unknown or repeated, a value out of range, a name or label repeated or a
+///   built-in shape's, text for the CSV (file, package, licence) with a comma, a quote or a
+///   control character, or a pose that is neither kind or both.
 std::vector<ShapeSpec> LoadShapeSpecs(const std::filesystem::path& path);
 
 /// Every mesh of @p file in @p pose, triangulated, in the scene's root frame and the file's own
-/// units, concatenated in the file's mesh order. The vertex and face order are the same for
+/// units, concatenated in the file's mesh order. The file's size and its vertex and face
+/// counts are bounded by io::DefaultReadLimits. The vertex and face order are the same for
 /// every pose of a file. No vertices are welded: a model's seams stay open (WrapSurface closes
 /// them). Skeletal poses: each node's channel interpolated at the time, linear blend skinning.
 /// @throws InputError naming the file when libassimp cannot read or validate it, an index is
