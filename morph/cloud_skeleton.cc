@@ -136,8 +136,8 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
   // Points on a handful of spots (duplicates, or a cloud the smoothing drew together) link
   // to nothing: no spacing to read, no shape to follow.
   if (lengths.empty())
-    throw InputError("skeleton: the points lie on " + std::to_string(n) +
-                     " spots or fewer than their neighbours; no shape to follow");
+    throw InputError("skeleton: the points sit on " + std::to_string(n) +
+                     " spots that link to no other; no shape to follow");
   std::vector<double> sorted = lengths;
   std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
                    sorted.end());
