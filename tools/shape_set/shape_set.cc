@@ -176,6 +176,7 @@ std::vector<ShapeSpec> LoadShapeSpecs(const std::filesystem::path& path) {
   if (!list.IsSequence() || list.size() == 0 || list.size() > kMaxFileShapes)
     r.Fail(list, "shapes", "expected a list of 1 to " + std::to_string(kMaxFileShapes) + " shapes");
   const std::filesystem::path folder = path.parent_path();
+  const std::vector<ShapeSpec> built_in = DefaultShapeSpecs();
   std::vector<ShapeSpec> specs;
   std::set<std::string> names;
   for (std::size_t k = 0; k < list.size(); ++k) {
@@ -191,17 +192,17 @@ std::vector<ShapeSpec> LoadShapeSpecs(const std::filesystem::path& path) {
               "' is not 1 to 64 letters, digits, '_' or '-', or is 'lamb' (the synthetic lambs)");
     if (!names.insert(spec.name).second)
       r.Fail(node["name"], key + ".name", "'" + spec.name + "' is listed twice");
-    for (const ShapeSpec& built_in : DefaultShapeSpecs())
-      if (built_in.name == spec.name)
+    for (const ShapeSpec& other : built_in)
+      if (other.name == spec.name)
         r.Fail(node["name"], key + ".name",
                "'" + spec.name + "' is a built-in shape's name; call it something else");
     spec.family = r.Scalar<std::string>(r.Child(node, "family", key), key + ".family");
     if (!IsName(spec.family))
       r.Fail(node["family"], key + ".family",
              "'" + io::Excerpt(spec.family) + "' is not 1 to 64 letters, digits, '_' or '-'");
-    const std::string file = r.Scalar<std::string>(r.Child(node, "file", key), key + ".file");
+    // Its name goes into the CSV's source column.
+    const std::string file = CsvText(r, r.Child(node, "file", key), key + ".file");
     if (file.empty()) r.Fail(node["file"], key + ".file", "is empty");
-    CsvText(r, node["file"], key + ".file");  // its name goes into the CSV's source column
     spec.file =
         std::filesystem::path(file).is_absolute() ? std::filesystem::path(file) : folder / file;
     spec.package = node["package"] ? CsvText(r, node["package"], key + ".package")
