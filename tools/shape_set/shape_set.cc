@@ -124,17 +124,23 @@ void ExpectKeys(const io::YamlReader& r, const YAML::Node& node, const std::stri
   for (const auto& entry : node) r.ExpectKnownKey(entry.first, key, known);
 }
 
-// Text for the CSV and the docs: at most 200 printable characters, none of them a comma, a
-// quote or a control character (the CSV is written unquoted).
-std::string CsvText(const io::YamlReader& r, const YAML::Node& node, const std::string& key) {
+// Text for a log line: at most 200 printable characters (no control character).
+std::string PrintableText(const io::YamlReader& r, const YAML::Node& node, const std::string& key) {
   const auto text = r.Scalar<std::string>(node, key);
-  const bool plain =
-      text.size() <= 200 && std::all_of(text.begin(), text.end(), [](char c) {
-        return std::isprint(static_cast<unsigned char>(c)) != 0 && c != ',' && c != '"';
-      });
-  if (!plain)
-    r.Fail(node, key,
-           "'" + io::Excerpt(text) + "' is not up to 200 printable characters without ',' or '\"'");
+  const bool printable = text.size() <= 200 && std::all_of(text.begin(), text.end(), [](char c) {
+                           return std::isprint(static_cast<unsigned char>(c)) != 0;
+                         });
+  if (!printable)
+    r.Fail(node, key, "'" + io::Excerpt(text) + "' is not up to 200 printable characters");
+  return text;
+}
+
+// Text for the CSV's source column as well: none of its characters a comma or a quote either
+// (the CSV is written unquoted).
+std::string CsvText(const io::YamlReader& r, const YAML::Node& node, const std::string& key) {
+  const std::string text = PrintableText(r, node, key);
+  if (text.find_first_of(",\"") != std::string::npos)
+    r.Fail(node, key, "'" + io::Excerpt(text) + "' holds a ',' or a '\"', which the CSV cannot");
   return text;
 }
 
@@ -207,7 +213,7 @@ std::vector<ShapeSpec> LoadShapeSpecs(const std::filesystem::path& path) {
         std::filesystem::path(file).is_absolute() ? std::filesystem::path(file) : folder / file;
     spec.package = node["package"] ? CsvText(r, node["package"], key + ".package")
                                    : std::string("(not packaged)");
-    spec.licence = node["licence"] ? CsvText(r, node["licence"], key + ".licence")
+    spec.licence = node["licence"] ? PrintableText(r, node["licence"], key + ".licence")
                                    : std::string("(not given)");
     spec.rest = ReadPose(r, r.Child(node, "rest", key), key + ".rest");
     const YAML::Node targets = r.Child(node, "targets", key);

@@ -46,8 +46,8 @@ inline constexpr int kMaxShapePoses = 64;
 /// the case is built (LoadPosedModel).
 /// @throws InputError naming the file, line and key for a file that cannot be read, a key
 ///   missing, unknown or repeated, a value out of range, a name or label repeated or a
-///   built-in shape's, text for the CSV (file, package, licence) with a comma, a quote or a
-///   control character, or a pose that is neither kind or both.
+///   built-in shape's, a control character in the text (file, package, licence) or a comma
+///   or a quote in the CSV's (file, package), or a pose that is neither kind or both.
 std::vector<ShapeSpec> LoadShapeSpecs(const std::filesystem::path& path);
 
 /// Every mesh of @p file in @p pose, triangulated, in the scene's root frame and the file's own
