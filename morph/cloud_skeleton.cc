@@ -4,7 +4,6 @@
 // clang-format off
 // The compressed graph last: it declares a boost::detail::get which, included before the
 // others, would hide from their templates the get they use on plain arrays.
-#include <boost/graph/adjacency_list.hpp>
 #include <boost/graph/dijkstra_shortest_paths.hpp>
 #include <boost/graph/kruskal_min_spanning_tree.hpp>
 #include <boost/pending/disjoint_sets.hpp>
@@ -20,14 +19,9 @@
 namespace vb::morph {
 namespace {
 
-// The skeleton nodes' graph, for the spanning tree; edges kept in a vector (the last vecS).
-using Graph =
-    boost::adjacency_list<boost::vecS, boost::vecS, boost::undirectedS, boost::no_property,
-                          boost::property<boost::edge_weight_t, double>, boost::no_property,
-                          boost::vecS>;
-
-// The points' graph for the geodesic distances: built once from its edge list, each
-// undirected edge as two directed ones.
+// The points' graph for the geodesic distances (each undirected edge as two directed ones),
+// and the skeleton nodes' graph for the spanning tree (each link once): built once from an
+// edge list.
 using Compressed =
     boost::compressed_sparse_row_graph<boost::directedS, boost::no_property,
                                        boost::property<boost::edge_weight_t, double>>;
@@ -379,13 +373,17 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
   }
   std::sort(links.begin(), links.end());
   links.erase(std::unique(links.begin(), links.end()), links.end());
-  Graph nodes_graph(sums.size());
-  for (const auto& link : links) {
-    boost::add_edge(static_cast<std::size_t>(link.first), static_cast<std::size_t>(link.second),
-                    (skeleton.nodes.col(link.first) - skeleton.nodes.col(link.second)).norm(),
-                    nodes_graph);
-  }
-  std::vector<Graph::edge_descriptor> tree;
+  // Each link once, from its lower node, in the sorted order: the spanning tree reads only
+  // the edge list, and a compressed graph is built in a few arrays where a graph grown edge by
+  // edge keeps a list per node.
+  std::vector<double> link_lengths;
+  link_lengths.reserve(links.size());
+  for (const auto& [a, b] : links)
+    link_lengths.push_back((skeleton.nodes.col(a) - skeleton.nodes.col(b)).norm());
+  const Compressed nodes_graph(boost::edges_are_sorted, links.begin(), links.end(),
+                               link_lengths.begin(), sums.size());
+  std::vector<Compressed::edge_descriptor> tree;
+  tree.reserve(sums.size());
   boost::kruskal_minimum_spanning_tree(nodes_graph, std::back_inserter(tree));
   for (const auto& e : tree) {
     skeleton.edges.push_back({static_cast<int>(boost::source(e, nodes_graph)),
