@@ -9,6 +9,11 @@
 
 namespace vb::morph {
 
+int NormalPassesForNoise(double relative_noise, int max_passes) {
+  return static_cast<int>(std::lround(std::clamp(relative_noise * relative_noise, 1.0,
+                                                 static_cast<double>(std::max(1, max_passes)))));
+}
+
 Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointIndex& index, int k,
                                  int passes, const Eigen::Matrix3Xd& hints, WorkerPool* pool) {
   VB_DEMAND(k >= 3 && passes >= 1 && index.size() == points.cols() &&

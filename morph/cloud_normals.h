@@ -30,6 +30,11 @@ Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, const PointInde
                                  int passes, const Eigen::Matrix3Xd& hints,
                                  WorkerPool* pool = nullptr);
 
+/// EstimateNormals' passes for a cloud whose noise is @p relative_noise times the noise one
+/// pass suffices for: (relative_noise)^2 rounded (the normal's error falls with the square root
+/// of the points averaged), at least 1 and at most @p max_passes (at least 1).
+int NormalPassesForNoise(double relative_noise, int max_passes);
+
 /// Fits @p normals again over wider neighbourhoods: each point j with @p counts[j] > 0 gets
 /// the direction of least spread of its counts[j] nearest points (itself included; all
 /// points when there are fewer) that lie within @p radii[j] of it, signed to agree with its

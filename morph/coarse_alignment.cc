@@ -182,7 +182,9 @@ Eigen::Matrix3Xd PostureNormals(const Eigen::Matrix3Xd& target, const PointIndex
 
 CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target,
                          const CoarseOptions& options, WorkerPool* pool,
-                         const PointIndex* given_index, const Eigen::Matrix3Xd* target_normals) {
+                         const PointIndex* given_index, const Eigen::Matrix3Xd* target_normals,
+                         int fit_normal_passes) {
+  VB_DEMAND(fit_normal_passes >= 1);
   const auto start = std::chrono::steady_clock::now();
   CoarseResult result;
   if (target.cols() < 50) {
@@ -374,6 +376,16 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
       articulated_states[k] = std::move(fit.state);
     };
     ForEach(pool, static_cast<int>(picked.size()), fit_candidate);
+    // From the choice on, normals that average the noise away: one pass leaves a noisy
+    // cloud's normals near random, and the pairing drops pairs by them (docs/decisions.md:
+    // averaged for the choice as well, they flipped as many placements as they righted).
+    const bool estimated = target_normals == nullptr || target_normals->cols() != target.cols();
+    if (posture_normals.cols() > 0 && estimated && fit_normal_passes > 1) {
+      posture_normals =
+          EstimateNormals(target, target_index, std::max(3, options.articulation.normal_neighbours),
+                          fit_normal_passes, Eigen::Matrix3Xd(3, 0), pool);
+      result.posture_normal_passes = fit_normal_passes;
+    }
   }
   const bool use_articulated = std::any_of(articulated.begin(), articulated.end(),
                                            [](double d) { return std::isfinite(d); });

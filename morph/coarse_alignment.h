@@ -88,6 +88,9 @@ struct CoarseResult {
   /// Limbs the posture fit turned or swung as wholes before fitting again (TurnLimbs,
   /// SwingLimbs), when that fit was kept; 0 otherwise.
   int limbs_turned = 0;
+  /// EstimateNormals' passes of the target normals the chosen placement's posture fit paired
+  /// with (AlignCoarse's fit_normal_passes when it estimated them; 1 otherwise).
+  int posture_normal_passes = 1;
   /// The node transforms found, in the template's normalised frame; the dense stage goes on
   /// from them.
   DeformationState state;
@@ -112,9 +115,15 @@ struct CoarseResult {
 /// @param target_normals 3 by N normals of @p target, of any sign and length; a zero or
 ///   non-finite column means no direction known there. None, or another column count: the
 ///   posture fit estimates its own from the points.
+/// @param fit_normal_passes when the posture fit estimates its own normals: the candidates'
+///   fits, which choose the placement, pair with normals of one pass of
+///   ArticulationOptions::normal_neighbours; the chosen placement's fit from there on with
+///   normals of this many passes (EstimateNormals), which a noisy cloud needs
+///   (CleanAndAlignCoarse sets it from the cloud's noise). @pre at least 1.
 CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target,
                          const CoarseOptions& options = {}, WorkerPool* pool = nullptr,
                          const PointIndex* target_index = nullptr,
-                         const Eigen::Matrix3Xd* target_normals = nullptr);
+                         const Eigen::Matrix3Xd* target_normals = nullptr,
+                         int fit_normal_passes = 1);
 
 }  // namespace vb::morph

@@ -124,9 +124,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   const std::vector<int> nearest_posed = NearestEach(PointIndex(posed.V), points, pool);
   Eigen::Matrix3Xd normals;
   if (target_normals.cols() == 0) {
-    result.normal_passes = static_cast<int>(
-        std::lround(std::clamp(relative_surface_noise * relative_surface_noise, 1.0,
-                               static_cast<double>(std::max(1, options.max_normal_passes)))));
+    result.normal_passes = NormalPassesForNoise(relative_surface_noise, options.max_normal_passes);
     // Where the noise leaves one pass, the fewest points first: a sign for every normal (from
     // the posed template), and the normal itself where the shape allows no more.
     normals = EstimateNormals(

@@ -6,6 +6,9 @@
 #include <utility>
 #include <vector>
 
+#include "geometry/mesh_measures.h"
+#include "morph/cloud_noise.h"
+#include "morph/cloud_normals.h"
 #include "morph/point_index.h"
 
 namespace vb::morph {
@@ -78,23 +81,40 @@ CarcassResult MorphFromCoarse(const TemplateModel& model, const io::Annotations&
 }
 
 CoarseResult CleanAndAlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target,
-                                 const Eigen::Matrix3Xd& normals, const CleaningOptions& clean,
-                                 const CoarseOptions& coarse, WorkerPool* pool,
-                                 CleanedTarget* cleaned) {
+                                 const Eigen::Matrix3Xd& normals, const MorphOptions& options,
+                                 WorkerPool* pool, CleanedTarget* cleaned) {
   const bool checkable =
       target.allFinite() && (normals.cols() == 0 || normals.cols() == target.cols());
   if (!checkable) {
     *cleaned = CleanedTarget{};
     cleaned->points = target;
     cleaned->normals = normals;
-    return AlignCoarse(model, target, coarse, pool);
+    return AlignCoarse(model, target, options.coarse, pool);
   }
   // When the target is read whole and nothing is taken out, the cleaning's kd-tree over it
   // serves the coarse stage too (it refers to `target`, which the cleaned copy equals).
   std::unique_ptr<PointIndex> index;
-  *cleaned = CleanTarget(target, normals, clean, &index, pool, model.V.cols());
-  return AlignCoarse(model, index != nullptr ? target : cleaned->points, coarse, pool, index.get(),
-                     cleaned->normals.cols() > 0 ? &cleaned->normals : nullptr);
+  *cleaned = CleanTarget(target, normals, options.clean, &index, pool, model.V.cols());
+  const Eigen::Matrix3Xd& points = index != nullptr ? target : cleaned->points;
+  if (index == nullptr && points.cols() > 0) index = std::make_unique<PointIndex>(points);
+  // A cloud without normals: the posture fit estimates its own, over as many points as the
+  // noise asks, by the dense stage's rule (its noise reading and passes), the noise read here
+  // as a fraction of the cloud's size.
+  int fit_normal_passes = 1;
+  const bool estimates_normals =
+      cleaned->normals.cols() == 0 && options.coarse.articulation.max_normal_angle_deg < 90.0;
+  if (estimates_normals && index != nullptr && points.cols() >= 50) {
+    const double size = geometry::BoundingBoxDiagonal(points);
+    if (size > 0.0) {
+      const DenseOptions& dense = options.dense;
+      const NoiseEstimate noise = EstimateNoise(points, *index, dense.noise_samples,
+                                                dense.noise_neighbours, dense.noise_radius * size);
+      fit_normal_passes =
+          NormalPassesForNoise(noise.sigma / size / dense.surface_noise, dense.max_normal_passes);
+    }
+  }
+  return AlignCoarse(model, points, options.coarse, pool, index.get(),
+                     cleaned->normals.cols() > 0 ? &cleaned->normals : nullptr, fit_normal_passes);
 }
 
 CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& annotations,
@@ -104,8 +124,7 @@ CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& an
   CoarseResult coarse;
   CleanedTarget cleaned;
   try {
-    coarse = CleanAndAlignCoarse(model, target, normals, options.clean,
-                                 WithDeadline(options).coarse, pool, &cleaned);
+    coarse = CleanAndAlignCoarse(model, target, normals, WithDeadline(options), pool, &cleaned);
   } catch (const std::exception& e) {  // a bad target is a result, not a crash
     CarcassResult r;
     r.error = e.what();

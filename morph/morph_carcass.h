@@ -48,16 +48,17 @@ struct CarcassResult {
 };
 
 /// The morph's first steps, as MorphCarcass takes them: a cloud far denser than @p model's
-/// vertices thinned and the clutter taken out (CleanTarget), then AlignCoarse on the rest,
-/// with the cleaning's kd-tree when the target was read whole and nothing went. A target with
-/// non-finite points or a normal count of its own is not cleaned, for the stages to name the
-/// fault. @p cleaned receives the cloud (and normals) the later stages are to use and what
-/// was left out. Throws what AlignCoarse throws.
+/// vertices thinned and the clutter taken out (options.clean, CleanTarget), then AlignCoarse
+/// (options.coarse) on the rest, with the cleaning's kd-tree when the target was read whole
+/// and nothing went. For a cloud without normals the noise is read (options.dense's reading)
+/// and sets AlignCoarse's fit_normal_passes as it sets the dense stage's normal passes. A
+/// target with non-finite points or a normal count of its own is not cleaned, for the stages
+/// to name the fault. @p cleaned receives the cloud (and normals) the later stages are to use
+/// and what was left out. Throws what AlignCoarse throws.
 /// @param pool threads to share the work with (none: the caller's alone).
 CoarseResult CleanAndAlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target,
-                                 const Eigen::Matrix3Xd& normals, const CleaningOptions& clean,
-                                 const CoarseOptions& coarse, WorkerPool* pool,
-                                 CleanedTarget* cleaned);
+                                 const Eigen::Matrix3Xd& normals, const MorphOptions& options,
+                                 WorkerPool* pool, CleanedTarget* cleaned);
 
 /// The stages after the coarse one, from @p coarse: dense surface, the whole-morph check, cut
 /// transfer and virtual cutting. MorphCarcass calls it after AlignCoarse; the benchmark also

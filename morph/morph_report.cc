@@ -83,6 +83,7 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
   deformation["message"] = r.deformation.message;
   deformation["kept"] = r.deformation_kept;
   deformation["limbs_turned"] = r.limbs_turned;
+  deformation["posture_normal_passes"] = r.posture_normal_passes;
   if (dense != nullptr) {
     nlohmann::json rounds = nlohmann::json::array();
     for (const DenseRound& round : dense->rounds) {

@@ -104,23 +104,26 @@ CarcassPose SampleCarcassPose(std::uint64_t seed, const PoseOptions& options) {
   auto uniform = [&rng](double lo, double hi) {
     return std::uniform_real_distribution<double>(lo, hi)(rng);
   };
+  VB_DEMAND(options.angle_scale >= 0.0 && options.angle_scale <= 4.0);
   CarcassPose pose;
   auto& b = pose.bones;
+  // A joint angle in degrees, drawn from [lo, hi] times the scale.
+  const auto angle = [&](double lo, double hi) { return options.angle_scale * uniform(lo, hi); };
   // Twist on the hook, then the spine: flexion (x), lateral bend (y), axial twist (z).
-  b[kPelvis].rotation = Rotation(0.0, 0.0, uniform(-25, 25));
-  b[kLumbar].rotation = Rotation(uniform(-8, 8), uniform(-5, 5), uniform(-6, 6));
-  b[kThorax].rotation = Rotation(uniform(-8, 8), uniform(-5, 5), uniform(-6, 6));
-  b[kNeck].rotation = Rotation(uniform(-20, 20), uniform(-6, 6), 0.0);
+  b[kPelvis].rotation = Rotation(0.0, 0.0, angle(-25, 25));
+  b[kLumbar].rotation = Rotation(angle(-8, 8), angle(-5, 5), angle(-6, 6));
+  b[kThorax].rotation = Rotation(angle(-8, 8), angle(-5, 5), angle(-6, 6));
+  b[kNeck].rotation = Rotation(angle(-20, 20), angle(-6, 6), 0.0);
   // Hind legs spread on the gambrel (positive = outwards) and flex.
-  b[kThighLeft].rotation = Rotation(uniform(-10, 10), uniform(-4, 12), 0.0);
-  b[kThighRight].rotation = Rotation(uniform(-10, 10), -uniform(-4, 12), 0.0);
-  b[kShankLeft].rotation = Rotation(uniform(-10, 10), 0.0, 0.0);
-  b[kShankRight].rotation = Rotation(uniform(-10, 10), 0.0, 0.0);
+  b[kThighLeft].rotation = Rotation(angle(-10, 10), angle(-4, 12), 0.0);
+  b[kThighRight].rotation = Rotation(angle(-10, 10), -angle(-4, 12), 0.0);
+  b[kShankLeft].rotation = Rotation(angle(-10, 10), 0.0, 0.0);
+  b[kShankRight].rotation = Rotation(angle(-10, 10), 0.0, 0.0);
   // Fore legs swing forwards and backwards and splay a little.
-  b[kUpperArmLeft].rotation = Rotation(uniform(-25, 25), -uniform(-3, 8), 0.0);
-  b[kUpperArmRight].rotation = Rotation(uniform(-25, 25), uniform(-3, 8), 0.0);
-  b[kForearmLeft].rotation = Rotation(uniform(-15, 15), 0.0, 0.0);
-  b[kForearmRight].rotation = Rotation(uniform(-15, 15), 0.0, 0.0);
+  b[kUpperArmLeft].rotation = Rotation(angle(-25, 25), -angle(-3, 8), 0.0);
+  b[kUpperArmRight].rotation = Rotation(angle(-25, 25), angle(-3, 8), 0.0);
+  b[kForearmLeft].rotation = Rotation(angle(-15, 15), 0.0, 0.0);
+  b[kForearmRight].rotation = Rotation(angle(-15, 15), 0.0, 0.0);
 
   // Shape: a body-wide girth and fat level, varied per part; limbs in symmetric pairs.
   const double body_girth = uniform(0.88, 1.12);

@@ -39,10 +39,14 @@ struct PoseOptions {
   /// upright (+z up) and turned only about the vertical.
   bool arbitrary_orientation = true;
   double max_translation_m = 0.5;
+  /// Every joint's range of angles times this: 1 draws the line's poses, more draws poses a
+  /// line would not make (a benchmark of wider poses). @pre 0 to 4.
+  double angle_scale = 1.0;
 };
 
 /// Draws a pose: hind-leg spread, spine flexion and twist, twist on the hook, fore-leg
-/// swing, neck bend, per-part length/girth/fat, global scale 0.8-1.2, rigid placement.
+/// swing, neck bend (each range times options.angle_scale), per-part length/girth/fat, global
+/// scale 0.8-1.2, rigid placement. The same seed draws the same numbers at any angle_scale.
 CarcassPose SampleCarcassPose(std::uint64_t seed, const PoseOptions& options = {});
 
 /// A posed template: a target with its ground truth.

@@ -278,9 +278,13 @@ std::vector<BenchCase> BuildCases(const ShapeBenchOptions& options,
       const std::uint64_t seed = options.seed * 1000003 + static_cast<std::uint64_t>(i);
       perception::PoseOptions pose_options;
       pose_options.arbitrary_orientation = false;  // placement is drawn below, as for every shape
+      pose_options.angle_scale = options.lamb_pose_scale;
       const perception::PosedCarcass posed =
           perception::PoseCarcass(carcass, perception::SampleCarcassPose(seed, pose_options));
-      ShapeTarget target{.pair = "rest-s" + std::to_string(seed), .V = posed.mesh.V};
+      char scale[32] = "";
+      if (options.lamb_pose_scale != 1.0)
+        std::snprintf(scale, sizeof(scale), "-angles%gx", options.lamb_pose_scale);
+      ShapeTarget target{.pair = "rest-s" + std::to_string(seed) + scale, .V = posed.mesh.V};
       target.pose_change_deg = PoseChangeDeg(carcass.mesh.V, target.V);
       c.targets.push_back(std::move(target));
       c.scanned.push_back(posed.mesh);
@@ -475,7 +479,7 @@ int RunShapeBench(const ShapeBenchOptions& options) {
           // cleaning's time counts in the coarse stage's.
           morph::CleanedTarget cleaned;
           const morph::CoarseResult coarse = morph::CleanAndAlignCoarse(
-              model, points, Eigen::Matrix3Xd(), morph::MorphOptions{}.clean, {}, &pool, &cleaned);
+              model, points, Eigen::Matrix3Xd(), morph::MorphOptions{}, &pool, &cleaned);
           coarse_row.seconds = cleaned.summary.seconds + coarse.total_seconds;
           std::string error;
           if (coarse.ok) {

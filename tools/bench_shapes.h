@@ -19,6 +19,9 @@ struct ShapeBenchOptions {
   /// More shapes (LoadShapeSpecs), run besides DefaultShapeSpecs; none when empty.
   std::filesystem::path shape_file;
   int lamb_pairs = 2;            ///< synthetic lamb targets (generator poses)
+  /// The lambs' joint angle ranges times this (perception::PoseOptions::angle_scale): 1, the
+  /// line's poses; more, poses the line would not make. Pairs are labelled with it when not 1.
+  double lamb_pose_scale = 1.0;
   int max_pairs = 0;             ///< per shape, the first n pairs only (0: all)
   double shadow_fraction = 0.2;  ///< points removed in the camera-shadow band
   /// The clutter variant: stray points added, this many per target point (half scattered

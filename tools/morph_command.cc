@@ -204,9 +204,8 @@ int RunMorphCommand(const MorphCommandOptions& options) {
     morph::WorkerPool pool(options.threads);
     // As the full stage does (MorphCarcass): clutter out first.
     morph::CleanedTarget cleaned;
-    result.coarse =
-        morph::CleanAndAlignCoarse(model, target.points, target.normals, morph_options.clean,
-                                   morph_options.coarse, &pool, &cleaned);
+    result.coarse = morph::CleanAndAlignCoarse(model, target.points, target.normals, morph_options,
+                                               &pool, &cleaned);
     result.cleaning = cleaned.summary;
   }
   const morph::CoarseResult& coarse = result.coarse;

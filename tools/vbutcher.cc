@@ -309,6 +309,11 @@ int main(int argc, char** argv) {
                               "docs/benchmarks.md), run besides the built-in ones");
   shape_bench_cmd->add_option("--lamb-pairs", shape_bench.lamb_pairs, "Synthetic lamb targets")
       ->capture_default_str();
+  shape_bench_cmd
+      ->add_option("--lamb-pose-scale", shape_bench.lamb_pose_scale,
+                   "The lambs' joint angle ranges times this (1: the line's poses; up to 4)")
+      ->check(CLI::Range(0.0, 4.0))
+      ->capture_default_str();
   shape_bench_cmd->add_option("--max-pairs", shape_bench.max_pairs, "Per shape, the first n pairs (0: all)")
       ->capture_default_str();
   shape_bench_cmd->add_option("--shadow-fraction", shape_bench.shadow_fraction,

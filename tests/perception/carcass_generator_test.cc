@@ -157,6 +157,30 @@ TEST_F(CarcassTemplateTest, PosesAreDeterministicPerSeedAndDifferAcrossSeeds) {
   EXPECT_GT((a.mesh.V - c.mesh.V).cwiseAbs().maxCoeff(), 0.01);
 }
 
+// angle_scale widens the joints' ranges and nothing else: the same seed draws the same
+// proportions and placement; at 0 every joint is straight.
+TEST_F(CarcassTemplateTest, TheAngleScaleTurnsTheJointsAndNothingElse) {
+  PoseOptions line, wide, straight;
+  wide.angle_scale = 2.5;
+  straight.angle_scale = 0.0;
+  const CarcassPose a = SampleCarcassPose(42, line);
+  const CarcassPose b = SampleCarcassPose(42, wide);
+  const CarcassPose c = SampleCarcassPose(42, straight);
+  EXPECT_EQ(a.global_scale, b.global_scale);
+  EXPECT_TRUE(a.X_WorldBody.isApprox(b.X_WorldBody, 0.0));
+  double turned_more = 0;
+  for (int bone = 0; bone < kNumBones; ++bone) {
+    const auto k = static_cast<std::size_t>(bone);
+    EXPECT_EQ(a.bones[k].length_scale, b.bones[k].length_scale);
+    EXPECT_EQ(a.bones[k].girth_scale, b.bones[k].girth_scale);
+    EXPECT_EQ(a.bones[k].fat_m, b.bones[k].fat_m);
+    EXPECT_TRUE(c.bones[k].rotation.isApprox(Eigen::Matrix3d::Identity(), 1e-15)) << bone;
+    const auto angle = [](const Eigen::Matrix3d& R) { return Eigen::AngleAxisd(R).angle(); };
+    turned_more += angle(b.bones[k].rotation) - angle(a.bones[k].rotation);
+  }
+  EXPECT_GT(turned_more, 0.0);
+}
+
 TEST_F(CarcassTemplateTest, NormalNoiseFollowsThePaperProtocol) {
   const double sigma = 0.004;
   const geometry::TriangleMesh noisy = AddNormalNoise(dut().mesh, sigma, 7);

@@ -115,3 +115,24 @@ if fail:
     print("FAIL:", *fail, sep="\n  ")
     sys.exit(1)
 PY
+# The lamb in wider poses (--lamb-pose-scale): its pair labelled with the scale, and the same
+# body turned further from the template than the line's pose of it (the first run's lamb); a
+# scale past 4 is refused.
+"$vbutcher" bench shapes --shapes lamb --lamb-pairs 1 --lamb-pose-scale 2.5 --sigmas-mm 0 \
+  --variants clean --no-png --csv "$work/wide.csv" >/dev/null 2>&1
+/usr/bin/python3 - "$work/shapes.csv" "$work/wide.csv" <<'PY'
+import csv, sys
+line = [r for r in csv.DictReader(open(sys.argv[1])) if r["shape"] == "lamb" and r["method"] == "full"]
+wide = [r for r in csv.DictReader(open(sys.argv[2])) if r["method"] == "full"]
+if len(wide) != 1 or wide[0]["pair"] != line[0]["pair"] + "-angles2.5x":
+    print("FAIL: wide pairs", [r["pair"] for r in wide], "line", line[0]["pair"])
+    sys.exit(1)
+a, b = float(line[0]["pose_change_deg"]), float(wide[0]["pose_change_deg"])
+if not b > 1.5 * a:
+    print(f"FAIL: pose change {b:.1f} degrees at 2.5 times the ranges, {a:.1f} on the line")
+    sys.exit(1)
+print(f"ok: the lamb's pose change {a:.1f} -> {b:.1f} degrees")
+PY
+status=0
+"$vbutcher" bench shapes --shapes lamb --lamb-pose-scale 5 --csv "$work/no.csv" >/dev/null 2>&1 || status=$?
+[ "$status" -eq 2 ] || { echo "FAIL: --lamb-pose-scale 5 exited $status, not 2"; exit 1; }
