@@ -376,16 +376,6 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
       articulated_states[k] = std::move(fit.state);
     };
     ForEach(pool, static_cast<int>(picked.size()), fit_candidate);
-    // From the choice on, normals that average the noise away: one pass leaves a noisy
-    // cloud's normals near random, and the pairing drops pairs by them (docs/decisions.md:
-    // averaged for the choice as well, they flipped as many placements as they righted).
-    const bool estimated = target_normals == nullptr || target_normals->cols() != target.cols();
-    if (posture_normals.cols() > 0 && estimated && fit_normal_passes > 1) {
-      posture_normals =
-          EstimateNormals(target, target_index, std::max(3, options.articulation.normal_neighbours),
-                          fit_normal_passes, Eigen::Matrix3Xd(3, 0), pool);
-      result.posture_normal_passes = fit_normal_passes;
-    }
   }
   const bool use_articulated = std::any_of(articulated.begin(), articulated.end(),
                                            [](double d) { return std::isfinite(d); });
@@ -453,6 +443,16 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
   if (use_articulated && result.association.ok) {
     // Go on from the chosen candidate's pose for the remaining rounds.
     phase = std::chrono::steady_clock::now();
+    // From the choice on, normals that average the noise away: one pass leaves a noisy
+    // cloud's normals near random, and the pairing drops pairs by them (docs/decisions.md:
+    // averaged for the choice as well, they flipped as many placements as they righted).
+    const bool estimated = target_normals == nullptr || target_normals->cols() != target.cols();
+    if (posture_normals.cols() > 0 && estimated && fit_normal_passes > 1) {
+      posture_normals =
+          EstimateNormals(target, target_index, std::max(3, options.articulation.normal_neighbours),
+                          fit_normal_passes, Eigen::Matrix3Xd(3, 0), pool);
+      result.posture_normal_passes = fit_normal_passes;
+    }
     ArticulationOptions rest = options.articulation;
     rest.rounds = std::max(0, options.articulation.rounds - options.choice_rounds);
     rest.stiffness_start =

@@ -95,14 +95,16 @@ CoarseResult CleanAndAlignCoarse(const TemplateModel& model, const Eigen::Matrix
   // serves the coarse stage too (it refers to `target`, which the cleaned copy equals).
   std::unique_ptr<PointIndex> index;
   *cleaned = CleanTarget(target, normals, options.clean, &index, pool, model.V.cols());
+  const auto start = std::chrono::steady_clock::now();
   const Eigen::Matrix3Xd& points = index != nullptr ? target : cleaned->points;
   if (index == nullptr && points.cols() > 0) index = std::make_unique<PointIndex>(points);
   // A cloud without normals: the posture fit estimates its own, over as many points as the
   // noise asks, by the dense stage's rule (its noise reading and passes), the noise read here
-  // as a fraction of the cloud's size.
+  // as a fraction of the cloud's size where the dense stage reads it in template sizes.
   int fit_normal_passes = 1;
-  const bool estimates_normals =
-      cleaned->normals.cols() == 0 && options.coarse.articulation.max_normal_angle_deg < 90.0;
+  const bool estimates_normals = cleaned->normals.cols() == 0 &&
+                                 options.coarse.articulation.max_normal_angle_deg < 90.0 &&
+                                 options.coarse.articulated_candidates > 0;
   if (estimates_normals && index != nullptr && points.cols() >= 50) {
     const double size = geometry::BoundingBoxDiagonal(points);
     if (size > 0.0) {
@@ -113,8 +115,12 @@ CoarseResult CleanAndAlignCoarse(const TemplateModel& model, const Eigen::Matrix
           NormalPassesForNoise(noise.sigma / size / dense.surface_noise, dense.max_normal_passes);
     }
   }
-  return AlignCoarse(model, points, options.coarse, pool, index.get(),
-                     cleaned->normals.cols() > 0 ? &cleaned->normals : nullptr, fit_normal_passes);
+  const double prepared_seconds = Since(start);  // the tree and the noise reading
+  CoarseResult result =
+      AlignCoarse(model, points, options.coarse, pool, index.get(),
+                  cleaned->normals.cols() > 0 ? &cleaned->normals : nullptr, fit_normal_passes);
+  result.total_seconds += prepared_seconds;
+  return result;
 }
 
 CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& annotations,

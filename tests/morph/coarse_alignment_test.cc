@@ -53,10 +53,11 @@ TEST_F(CoarseAlignmentTest, PlacesPartialCloudsTheSkeletonsAloneTurnOver) {
 }
 
 // A cloud without normals at 12 mm: after the choice, the posture fit pairs with normals
-// averaged over several passes (about (noise / dense.surface_noise)^2), which lands the
-// carcasses nearer their poses than one pass of 10 points does (measured: mean errors 1.28,
-// 2.88 and 1.58 % of the diagonal against 1.42, 2.87 and 1.67 %). A cloud at 2 mm, or one
-// given normals, keeps the one pass.
+// averaged over several passes (about (noise / dense.surface_noise)^2, the noise a fraction of
+// the cloud's diagonal; measured 8, the most), which lands the carcasses nearer their poses
+// than one pass of 10 points does (measured: mean errors 1.28, 2.88 and 1.58 % of the diagonal
+// against 1.42, 2.87 and 1.67 %). At 7 mm fewer passes (measured 3), and as many for the
+// same cloud in millimetres; at 2 mm, or given normals, one.
 TEST_F(CoarseAlignmentTest, ANoisyCloudWithoutNormalsIsFittedWithWiderNormals) {
   MorphOptions options;
   options.coarse.upright.enabled = true;
@@ -70,9 +71,7 @@ TEST_F(CoarseAlignmentTest, ANoisyCloudWithoutNormalsIsFittedWithWiderNormals) {
     ASSERT_TRUE(wide.ok) << wide.error;
     const CoarseResult narrow = AlignCoarse(*model_, cleaned.points, options.coarse);
     ASSERT_TRUE(narrow.ok) << narrow.error;
-    EXPECT_EQ(narrow.posture_normal_passes, 1);
-    // The noise asks for more than the most passes there may be.
-    EXPECT_EQ(wide.posture_normal_passes, options.dense.max_normal_passes) << "seed " << seed;
+    EXPECT_GE(wide.posture_normal_passes, 5) << "seed " << seed;
     const double diagonal = geometry::BoundingBoxDiagonal(truth.mesh.V);
     const auto error = [&](const CoarseResult& r) {
       return (r.mesh.V - truth.mesh.V).colwise().norm().mean() / diagonal;
@@ -83,6 +82,16 @@ TEST_F(CoarseAlignmentTest, ANoisyCloudWithoutNormalsIsFittedWithWiderNormals) {
   EXPECT_LT(wide_sum, narrow_sum);
 
   CleanedTarget cleaned;
+  const Eigen::Matrix3Xd middling = test::HangingCloud(*carcass_, 1000005u, 0.007);
+  const int passes =
+      CleanAndAlignCoarse(*model_, middling, Eigen::Matrix3Xd(), options, nullptr, &cleaned)
+          .posture_normal_passes;
+  const int passes_mm = CleanAndAlignCoarse(*model_, 1000.0 * middling, Eigen::Matrix3Xd(), options,
+                                            nullptr, &cleaned)
+                            .posture_normal_passes;
+  EXPECT_GE(passes, 2);
+  EXPECT_LT(passes, options.dense.max_normal_passes);
+  EXPECT_EQ(passes_mm, passes);
   const Eigen::Matrix3Xd quiet = test::HangingCloud(*carcass_, 1000005u, 0.002);
   EXPECT_EQ(CleanAndAlignCoarse(*model_, quiet, Eigen::Matrix3Xd(), options, nullptr, &cleaned)
                 .posture_normal_passes,

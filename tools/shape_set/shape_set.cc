@@ -124,7 +124,8 @@ void ExpectKeys(const io::YamlReader& r, const YAML::Node& node, const std::stri
   for (const auto& entry : node) r.ExpectKnownKey(entry.first, key, known);
 }
 
-// Text for a log line: at most 200 printable characters (no control character).
+// Free text kept with a shape (its licence): at most 200 printable characters, no control
+// character.
 std::string PrintableText(const io::YamlReader& r, const YAML::Node& node, const std::string& key) {
   const auto text = r.Scalar<std::string>(node, key);
   const bool printable = text.size() <= 200 && std::all_of(text.begin(), text.end(), [](char c) {
