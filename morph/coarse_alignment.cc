@@ -160,13 +160,20 @@ Eigen::Matrix3Xd EveryNth(const Eigen::Matrix3Xd& points, int wanted) {
   return out;
 }
 
+// Whether @p given holds a normal for every point of @p target (else the posture fit
+// estimates its own).
+bool HasNormals(const Eigen::Matrix3Xd& target, const Eigen::Matrix3Xd* given) {
+  return given != nullptr && given->cols() == target.cols();
+}
+
 // The target's normals for the posture fit's pairing (ArticulationOptions::
 // max_normal_angle_deg): the given ones made unit (zero, "no direction known", where one has
-// no length or is not finite), else principal-axis normals of @p neighbours points, of either
-// sign.
+// no length or is not finite), else principal-axis normals of @p neighbours points over
+// @p passes (EstimateNormals), of either sign.
 Eigen::Matrix3Xd PostureNormals(const Eigen::Matrix3Xd& target, const PointIndex& index,
-                                const Eigen::Matrix3Xd* given, int neighbours, WorkerPool* pool) {
-  if (given != nullptr && given->cols() == target.cols()) {
+                                const Eigen::Matrix3Xd* given, int neighbours, int passes,
+                                WorkerPool* pool) {
+  if (HasNormals(target, given)) {
     Eigen::Matrix3Xd out(3, given->cols());
     for (Eigen::Index i = 0; i < given->cols(); ++i) {
       const double length = given->col(i).norm();
@@ -175,7 +182,8 @@ Eigen::Matrix3Xd PostureNormals(const Eigen::Matrix3Xd& target, const PointIndex
     }
     return out;
   }
-  return EstimateNormals(target, index, std::max(3, neighbours), 1, Eigen::Matrix3Xd(3, 0), pool);
+  return EstimateNormals(target, index, std::max(3, neighbours), passes, Eigen::Matrix3Xd(3, 0),
+                         pool);
 }
 
 }  // namespace
@@ -357,7 +365,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     }
     if (options.articulation.max_normal_angle_deg < 90.0) {
       posture_normals = PostureNormals(target, target_index, target_normals,
-                                       options.articulation.normal_neighbours, pool);
+                                       options.articulation.normal_neighbours, 1, pool);
     }
     ArticulationOptions choice = options.articulation;
     choice.rounds = std::min(choice.rounds, options.choice_rounds);
@@ -446,11 +454,11 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     // From the choice on, normals that average the noise away: one pass leaves a noisy
     // cloud's normals near random, and the pairing drops pairs by them (docs/decisions.md:
     // averaged for the choice as well, they flipped as many placements as they righted).
-    const bool estimated = target_normals == nullptr || target_normals->cols() != target.cols();
-    if (posture_normals.cols() > 0 && estimated && fit_normal_passes > 1) {
+    if (posture_normals.cols() > 0 && !HasNormals(target, target_normals) &&
+        fit_normal_passes > 1) {
       posture_normals =
-          EstimateNormals(target, target_index, std::max(3, options.articulation.normal_neighbours),
-                          fit_normal_passes, Eigen::Matrix3Xd(3, 0), pool);
+          PostureNormals(target, target_index, nullptr, options.articulation.normal_neighbours,
+                         fit_normal_passes, pool);
       result.posture_normal_passes = fit_normal_passes;
     }
     ArticulationOptions rest = options.articulation;
