@@ -400,6 +400,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     result.placed_by_skeletons = chosen < skeleton_candidates;
     const double scale = result.association.from_to.scale;  // target units per template size
     result.disagreement = disagreements[chosen] / scale;
+    result.choice_disagreement = result.disagreement;
     result.runner_up_disagreement = std::numeric_limits<double>::infinity();
     const double cos_distinct = std::cos(options.distinct_angle_deg * std::numbers::pi / 180.0);
     for (std::size_t k = 0; k < candidates.size(); ++k) {

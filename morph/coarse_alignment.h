@@ -95,10 +95,14 @@ struct CoarseResult {
   /// from them.
   DeformationState state;
   /// Surface disagreement (mean closest-point distance both ways, template sizes) of the
-  /// chosen placement, and the least disagreement of a candidate turned at least
-  /// CoarseOptions::distinct_angle_deg away from it (infinity when there is none). Close
-  /// values mean the skeletons and surfaces could not tell two placements apart.
+  /// chosen placement after the whole posture fit.
   double disagreement = 0.0;
+  /// The chosen placement's disagreement when it was chosen (after the choice's rounds of
+  /// posture fit, or rigid when no candidate was fitted), and the least disagreement, at
+  /// the same point, of a candidate turned at least CoarseOptions::distinct_angle_deg away
+  /// from it (infinity when there is none). Close values mean the skeletons and surfaces
+  /// could not tell two placements apart.
+  double choice_disagreement = 0.0;
   double runner_up_disagreement = 0.0;
   double skeleton_seconds = 0.0;
   double association_seconds = 0.0;

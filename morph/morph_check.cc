@@ -17,7 +17,7 @@ MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
   const Eigen::Matrix3Xd& target = dense.target;
   MorphCheck check;
   if (std::isfinite(coarse.runner_up_disagreement) && coarse.runner_up_disagreement > 0)
-    check.ambiguity = coarse.disagreement / coarse.runner_up_disagreement;
+    check.ambiguity = coarse.choice_disagreement / coarse.runner_up_disagreement;
 
   // The model's normalised frame has the template's size as unit; the coarse similarity
   // takes it to the target's units.

@@ -15,7 +15,8 @@ namespace vb::morph {
 /// placed upside down, a limb taken for another, a region folded). Lengths are fractions
 /// of the template's size.
 struct MorphCheck {
-  /// Coarse disagreement over that of the best placement turned elsewhere (CoarseResult);
+  /// The chosen placement's disagreement over that of the best placement turned elsewhere,
+  /// both when the choice was made (CoarseResult::choice_disagreement);
   /// near 1 the coarse stage could not tell two placements apart, 0 when there was none.
   double ambiguity = 0.0;
   /// Fraction of target points farther than MorphCheckOptions::explained_distance (plus
@@ -52,8 +53,10 @@ struct MorphCheckOptions {
   /// template sizes and noise levels.
   double explained_distance = 0.02;
   double noise_allowance = 0.75;
-  /// Confidence falls linearly from 1 at ambiguity_start to 0 at 1.
-  double ambiguity_start = 0.92;
+  /// Confidence falls linearly from 1 at ambiguity_start to 0 at 1: from just above the
+  /// largest ambiguity of a right lamb placement on clouds up to 8 mm (0.959; at 16 mm the
+  /// noise alone brings right ones to 0.976).
+  double ambiguity_start = 0.96;
   /// Confidence halves at this unexplained fraction (and falls as its square beyond).
   double unexplained_scale = 0.08;
   /// Confidence falls linearly from 1 at stretch_start to 0 at stretch_end: from 1.2 times

@@ -70,7 +70,8 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
                       {"candidates_pruned", r.association.pruned},
                       {"scale", r.template_to_target.scale / model.size},
                       {"placement", r.placed_by_skeletons ? "skeleton pairing" : "principal axes"},
-                      {"surface_disagreement", r.disagreement}};
+                      {"surface_disagreement", r.disagreement},
+                      {"choice_disagreement", r.choice_disagreement}};
   if (std::isfinite(r.runner_up_disagreement))
     j["association"]["runner_up_disagreement"] = r.runner_up_disagreement;
   nlohmann::json& deformation = j["deformation"];

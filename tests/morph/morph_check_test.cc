@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <limits>
 
 #include "geometry/mesh_measures.h"
@@ -119,6 +120,30 @@ TEST_F(MorphCheckTest, ReachReadsHowFarTheUncoveredPartLies) {
 
 // MorphCarcass is AlignCoarse then MorphFromCoarse; the benchmark's --start-from-truth relies
 // on the second going on from whatever coarse result it is handed.
+// The ambiguity compares the chosen placement with the runner-up as both stood when the
+// choice was made; the chosen one's fit goes on after that, and its lower disagreement then
+// must not read as a clearer choice.
+TEST_F(MorphCheckTest, AmbiguityComparesBothPlacementsWhenTheChoiceWasMade) {
+  const Eigen::Matrix3Xd cloud = test::HangingCloud(*carcass_, 2000003u, 0.003);
+  const CarcassResult good = MorphUpright(cloud);
+  ASSERT_TRUE(good.ok) << good.error;
+  const CoarseResult& coarse = good.coarse;
+  ASSERT_TRUE(std::isfinite(coarse.runner_up_disagreement));
+  EXPECT_EQ(good.check.ambiguity, coarse.choice_disagreement / coarse.runner_up_disagreement);
+  EXPECT_LT(coarse.choice_disagreement, coarse.runner_up_disagreement);
+  // The posture fit's remaining rounds lowered the chosen placement's disagreement.
+  EXPECT_LT(coarse.disagreement, coarse.choice_disagreement);
+
+  // Two placements alike at the choice, the chosen one fitted far better afterwards.
+  CoarseResult alike = coarse;
+  alike.choice_disagreement = 0.99 * alike.runner_up_disagreement;
+  alike.disagreement = 0.5 * alike.runner_up_disagreement;
+  const MorphCheck check = CheckMorph(*model_, alike, good.dense);
+  EXPECT_NEAR(check.ambiguity, 0.99, 1e-12);
+  EXPECT_LT(check.confidence, 0.3);
+  EXPECT_NE(check.concern.find("placement ambiguous"), std::string::npos) << check.concern;
+}
+
 TEST_F(MorphCheckTest, MorphFromCoarseGoesOnFromTheCoarseResultItIsGiven) {
   const Eigen::Matrix3Xd cloud = test::HangingCloud(*carcass_, 2000003u, 0.003);
   const MorphOptions options = Upright();
