@@ -109,19 +109,31 @@ CarcassPose SampleCarcassPose(std::uint64_t seed, const PoseOptions& options) {
   auto& b = pose.bones;
   // A joint angle in degrees, drawn from [lo, hi] times the scale.
   const auto angle = [&](double lo, double hi) { return options.angle_scale * uniform(lo, hi); };
+  // C++ leaves the order of a call's arguments unspecified, so each joint's angles are drawn
+  // into named values first, the last axis first: the order every benchmark's lambs were
+  // drawn in (by GCC, which evaluates arguments right to left).
   // Twist on the hook, then the spine: flexion (x), lateral bend (y), axial twist (z).
   b[kPelvis].rotation = Rotation(0.0, 0.0, angle(-25, 25));
-  b[kLumbar].rotation = Rotation(angle(-8, 8), angle(-5, 5), angle(-6, 6));
-  b[kThorax].rotation = Rotation(angle(-8, 8), angle(-5, 5), angle(-6, 6));
-  b[kNeck].rotation = Rotation(angle(-20, 20), angle(-6, 6), 0.0);
+  for (int bone : {kLumbar, kThorax}) {
+    const double z = angle(-6, 6), y = angle(-5, 5), x = angle(-8, 8);
+    b[static_cast<std::size_t>(bone)].rotation = Rotation(x, y, z);
+  }
+  {
+    const double y = angle(-6, 6), x = angle(-20, 20);
+    b[kNeck].rotation = Rotation(x, y, 0.0);
+  }
   // Hind legs spread on the gambrel (positive = outwards) and flex.
-  b[kThighLeft].rotation = Rotation(angle(-10, 10), angle(-4, 12), 0.0);
-  b[kThighRight].rotation = Rotation(angle(-10, 10), -angle(-4, 12), 0.0);
+  for (const double side : {1.0, -1.0}) {
+    const double y = side * angle(-4, 12), x = angle(-10, 10);
+    b[side > 0 ? kThighLeft : kThighRight].rotation = Rotation(x, y, 0.0);
+  }
   b[kShankLeft].rotation = Rotation(angle(-10, 10), 0.0, 0.0);
   b[kShankRight].rotation = Rotation(angle(-10, 10), 0.0, 0.0);
   // Fore legs swing forwards and backwards and splay a little.
-  b[kUpperArmLeft].rotation = Rotation(angle(-25, 25), -angle(-3, 8), 0.0);
-  b[kUpperArmRight].rotation = Rotation(angle(-25, 25), angle(-3, 8), 0.0);
+  for (const double side : {-1.0, 1.0}) {
+    const double y = side * angle(-3, 8), x = angle(-25, 25);
+    b[side < 0 ? kUpperArmLeft : kUpperArmRight].rotation = Rotation(x, y, 0.0);
+  }
   b[kForearmLeft].rotation = Rotation(angle(-15, 15), 0.0, 0.0);
   b[kForearmRight].rotation = Rotation(angle(-15, 15), 0.0, 0.0);
 
@@ -147,13 +159,13 @@ CarcassPose SampleCarcassPose(std::uint64_t seed, const PoseOptions& options) {
   }
   pose.global_scale = uniform(0.8, 1.2);
   if (options.arbitrary_orientation) {
+    // Drawn last component first, as above.
     std::normal_distribution<double> normal;
-    Eigen::Quaterniond q(normal(rng), normal(rng), normal(rng), normal(rng));
-    q.normalize();
-    pose.X_WorldBody.linear() = q.toRotationMatrix();
+    const double qz = normal(rng), qy = normal(rng), qx = normal(rng), qw = normal(rng);
+    pose.X_WorldBody.linear() = Eigen::Quaterniond(qw, qx, qy, qz).normalized().toRotationMatrix();
     const double m = options.max_translation_m;
-    pose.X_WorldBody.translation() =
-        Eigen::Vector3d(uniform(-m, m), uniform(-m, m), uniform(-m, m));
+    const double tz = uniform(-m, m), ty = uniform(-m, m), tx = uniform(-m, m);
+    pose.X_WorldBody.translation() = Eigen::Vector3d(tx, ty, tz);
   } else {
     pose.X_WorldBody.linear() = Rotation(0.0, 0.0, uniform(-180, 180));
   }
