@@ -4,9 +4,10 @@
 
 namespace vb::perception {
 
-PosedCarcass HangCarcass(const CarcassTemplate& carcass, std::uint64_t seed) {
+PosedCarcass HangCarcass(const CarcassTemplate& carcass, std::uint64_t seed, double angle_scale) {
   PoseOptions pose_options;
   pose_options.arbitrary_orientation = false;
+  pose_options.angle_scale = angle_scale;
   PosedCarcass posed = PoseCarcass(carcass, SampleCarcassPose(seed, pose_options));
   const Eigen::Vector3d top = posed.mesh.V.rowwise().maxCoeff();
   const Eigen::Vector3d bottom = posed.mesh.V.rowwise().minCoeff();

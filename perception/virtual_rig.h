@@ -9,10 +9,11 @@
 
 namespace vb::perception {
 
-/// Hangs a synthetic carcass (pose drawn from @p seed, upright) on the rig's hook: the
-/// gambrel end at z = 0, the body centred on the z axis. Mesh, skeleton and true cut planes
-/// are all in the rig frame.
-PosedCarcass HangCarcass(const CarcassTemplate& carcass, std::uint64_t seed);
+/// Hangs a synthetic carcass (pose drawn from @p seed, upright; joint ranges times
+/// @p angle_scale, PoseOptions::angle_scale) on the rig's hook: the gambrel end at z = 0, the
+/// body centred on the z axis. Mesh, skeleton and true cut planes are all in the rig frame.
+PosedCarcass HangCarcass(const CarcassTemplate& carcass, std::uint64_t seed,
+                         double angle_scale = 1.0);
 
 struct VirtualRigOptions {
   std::filesystem::path out_dir;

@@ -209,8 +209,10 @@ int RunBenchCommand(const BenchOptions& given) {
       groups.emplace_back("lamb", input, sigma);
       for (int i = 0; i < options.pairs; ++i) {
         const std::uint64_t seed = options.seed * 1000003 + static_cast<std::uint64_t>(i);
+        perception::PoseOptions pose;
+        pose.angle_scale = options.pose_scale;
         const perception::PosedCarcass truth =
-            perception::PoseCarcass(carcass, perception::SampleCarcassPose(seed));
+            perception::PoseCarcass(carcass, perception::SampleCarcassPose(seed, pose));
         Eigen::Matrix3Xd points;
         if (std::string(input) == "mesh") {
           points = perception::AddNormalNoise(truth.mesh, sigma / 1000.0, seed + 17).V;

@@ -21,6 +21,9 @@ struct BenchOptions {
   /// Points sampled over each cloud target before the missing regions are dropped.
   int cloud_points = perception::CloudOptions{}.num_points;
   bool rig = false;     ///< full stage: also clouds fused from a 4-camera virtual rig
+  /// The lambs' joint angle ranges times this (perception::PoseOptions::angle_scale, 0 to 4):
+  /// 1, the line's poses.
+  double pose_scale = 1.0;
   std::vector<std::filesystem::path> shapes;  ///< extra closed meshes, re-posed by bends
   int shape_pairs = 5;
   std::string template_features = "levelset";  ///< levelset | mcf

@@ -234,8 +234,10 @@ int RunFullBench(const BenchOptions& options) {
       groups.emplace_back(input, sigma);
       for (int i = 0; i < options.pairs; ++i) {
         const std::uint64_t seed = options.seed * 1000003 + static_cast<std::uint64_t>(i);
+        perception::PoseOptions pose;
+        pose.angle_scale = options.pose_scale;
         const perception::PosedCarcass truth =
-            perception::PoseCarcass(carcass, perception::SampleCarcassPose(seed));
+            perception::PoseCarcass(carcass, perception::SampleCarcassPose(seed, pose));
         Eigen::Matrix3Xd points, normals;
         if (std::string(input) == "mesh") {
           // A mesh target carries its own normals, from its (noisy) faces.
@@ -276,7 +278,8 @@ int RunFullBench(const BenchOptions& options) {
     groups.emplace_back("rig", -1);
     for (int i = 0; i < options.pairs; ++i) {
       const std::uint64_t seed = options.seed * 1000003 + static_cast<std::uint64_t>(i);
-      const perception::PosedCarcass truth = perception::HangCarcass(carcass, seed);
+      const perception::PosedCarcass truth =
+          perception::HangCarcass(carcass, seed, options.pose_scale);
       std::vector<std::vector<std::uint16_t>> images(rig.cameras.size());
       std::vector<perception::DepthView> views;
       for (std::size_t c = 0; c < rig.cameras.size(); ++c) {

@@ -175,6 +175,11 @@ int main(int argc, char** argv) {
   bench_cmd->add_flag("--rig", bench.rig,
                       "Full stage: also clouds fused from a 4-camera virtual rig (sensor model)");
   bench_cmd
+      ->add_option("--pose-scale", bench.pose_scale,
+                   "The lambs' joint angle ranges times this (1: the line's poses; up to 4)")
+      ->check(CLI::Range(0.0, 4.0))
+      ->capture_default_str();
+  bench_cmd
       ->add_option("--shapes", bench.shapes,
                    "Extra closed meshes (e.g. CGAL's cow.off), re-posed by bends")
       ->check(CLI::ExistingFile);

@@ -8,6 +8,7 @@
 #include "geometry/mesh_measures.h"
 #include "geometry/mesh_topology.h"
 #include "geometry/plane_cut.h"
+#include "perception/virtual_rig.h"
 
 namespace vb::perception {
 namespace {
@@ -199,6 +200,17 @@ TEST_F(CarcassTemplateTest, TheAngleScaleTurnsTheJointsAndNothingElse) {
     turned_more += angle(b.bones[k].rotation) - angle(a.bones[k].rotation);
   }
   EXPECT_GT(turned_more, 0.0);
+}
+
+// The rig's carcasses take the angle scale too (bench --pose-scale): the same seed in wider
+// joints, still hung with the gambrel end at z = 0.
+TEST_F(CarcassTemplateTest, HangingCarcassesTakeTheAngleScale) {
+  const PosedCarcass line = HangCarcass(dut(), 42);
+  const PosedCarcass same = HangCarcass(dut(), 42, 1.0);
+  const PosedCarcass wide = HangCarcass(dut(), 42, 2.5);
+  EXPECT_EQ(line.mesh.V, same.mesh.V);
+  EXPECT_GT((line.mesh.V - wide.mesh.V).colwise().norm().maxCoeff(), 0.05);
+  for (const PosedCarcass* c : {&line, &wide}) EXPECT_NEAR(c->mesh.V.row(2).maxCoeff(), 0.0, 1e-12);
 }
 
 TEST_F(CarcassTemplateTest, NormalNoiseFollowsThePaperProtocol) {

@@ -446,6 +446,8 @@ check "calibrate saw --check says when X_SawRig no longer holds" 3 "no longer ho
 check "bench full starts from the truth" 0 "sigma 0: started from the truth at cut dist 0\.[0-9]* mm" \
   "$vbutcher" bench full --pairs 1 --sigmas-mm 0 --start-from-truth --csv "$work/bench.csv"
 [ -s "$work/bench.csv" ] || { echo "FAIL: bench wrote no CSV"; failures=$((failures + 1)); }
+check "bench refuses a pose scale beyond 4" 2 "pose-scale" \
+  "$vbutcher" bench full --pairs 1 --sigmas-mm 0 --pose-scale 5
 check "bench refuses too few cloud points" nonzero "cloud-points" \
   "$vbutcher" bench full --pairs 1 --cloud-points 5
 # A --shapes mesh that cannot be read stops the bench before its first morph, naming the file.
