@@ -95,14 +95,16 @@ struct CoarseResult {
   /// from them.
   DeformationState state;
   /// Surface disagreement (mean closest-point distance both ways, template sizes) of the
-  /// chosen placement after the whole posture fit.
+  /// chosen placement after the whole posture fit (the rigid placement's when no candidate
+  /// was given the posture fit).
   double disagreement = 0.0;
-  /// The chosen placement's disagreement when it was chosen (after the choice's rounds of
-  /// posture fit, or rigid when no candidate was fitted), and the least disagreement, at
-  /// the same point, of a candidate turned at least CoarseOptions::distinct_angle_deg away
-  /// from it (infinity when there is none). Close values mean the skeletons and surfaces
-  /// could not tell two placements apart.
+  /// The chosen placement's disagreement when it was chosen: after the choice's rounds of
+  /// posture fit, or rigid when no candidate was fitted. 0 when nothing was chosen.
   double choice_disagreement = 0.0;
+  /// The least disagreement, measured as choice_disagreement is, of a candidate turned at
+  /// least CoarseOptions::distinct_angle_deg from the chosen one: infinity when there is
+  /// none, 0 when nothing was chosen. Close to choice_disagreement, the skeletons and
+  /// surfaces could not tell two placements apart.
   double runner_up_disagreement = 0.0;
   double skeleton_seconds = 0.0;
   double association_seconds = 0.0;

@@ -54,8 +54,7 @@ struct MorphCheckOptions {
   double explained_distance = 0.02;
   double noise_allowance = 0.75;
   /// Confidence falls linearly from 1 at ambiguity_start to 0 at 1: from just above the
-  /// largest ambiguity of a right lamb placement on clouds up to 8 mm (0.959; at 16 mm the
-  /// noise alone brings right ones to 0.976).
+  /// largest ambiguity of a right lamb placement on clouds up to 8 mm (docs/decisions.md).
   double ambiguity_start = 0.96;
   /// Confidence halves at this unexplained fraction (and falls as its square beyond).
   double unexplained_scale = 0.08;

@@ -109,9 +109,9 @@ CarcassPose SampleCarcassPose(std::uint64_t seed, const PoseOptions& options) {
   auto& b = pose.bones;
   // A joint angle in degrees, drawn from [lo, hi] times the scale.
   const auto angle = [&](double lo, double hi) { return options.angle_scale * uniform(lo, hi); };
-  // C++ leaves the order of a call's arguments unspecified, so each joint's angles are drawn
-  // into named values first, the last axis first: the order every benchmark's lambs were
-  // drawn in (by GCC, which evaluates arguments right to left).
+  // Each joint's angles are drawn into named values before the call (C++ leaves the order of
+  // a call's arguments unspecified), the last axis first, so a seed gives the same lamb
+  // whatever the compiler (docs/decisions.md).
   // Twist on the hook, then the spine: flexion (x), lateral bend (y), axial twist (z).
   b[kPelvis].rotation = Rotation(0.0, 0.0, angle(-25, 25));
   for (int bone : {kLumbar, kThorax}) {
@@ -159,7 +159,7 @@ CarcassPose SampleCarcassPose(std::uint64_t seed, const PoseOptions& options) {
   }
   pose.global_scale = uniform(0.8, 1.2);
   if (options.arbitrary_orientation) {
-    // Drawn last component first, as above.
+    // Drawn into named values, the last component first, as above.
     std::normal_distribution<double> normal;
     const double qz = normal(rng), qy = normal(rng), qx = normal(rng), qw = normal(rng);
     pose.X_WorldBody.linear() = Eigen::Quaterniond(qw, qx, qy, qz).normalized().toRotationMatrix();

@@ -151,9 +151,8 @@ geometry::TriangleMesh BendShape(const geometry::TriangleMesh& mesh, std::uint64
   const double bend = 0.35 * u(rng), twist = 0.35 * u(rng);  // radians over half the length
   geometry::TriangleMesh out = mesh;
   // A uniformly random rotation from the seeded generator (Eigen's UnitRandom draws from
-  // std::rand, whose state depends on what ran before).
-  // Drawn into named values, last component first (the order GCC evaluated the arguments in
-  // when the benchmark's figures were made; C++ leaves that order unspecified).
+  // std::rand, whose state depends on what ran before), its components drawn into named
+  // values, the last first, so a seed gives the same bend whatever the compiler.
   std::normal_distribution<double> gauss;
   const double qz = gauss(rng), qy = gauss(rng), qx = gauss(rng), qw = gauss(rng);
   const Eigen::Quaterniond q = Eigen::Quaterniond(qw, qx, qy, qz).normalized();
@@ -173,6 +172,8 @@ int RunBenchCommand(const BenchOptions& given) {
   if (given.stage != "coarse" && given.stage != "full")
     throw InputError("bench: stage '" + given.stage + "' is neither 'coarse' nor 'full'");
   if (given.pairs < 1) throw InputError("bench: --pairs must be positive");
+  if (!(given.pose_scale >= 0.0 && given.pose_scale <= 4.0))
+    throw InputError("bench: --pose-scale must be within 0 to 4");
   // Every extra shape is read and modelled before the run: a file that cannot be stops the
   // bench at once (exit 2, naming it), not after minutes of lamb rows.
   for (const std::filesystem::path& path : given.shapes) {

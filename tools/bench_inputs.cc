@@ -108,6 +108,13 @@ std::string Count(std::int64_t n) {
   return out;
 }
 
+// Three draws of @p dist, x first (drawn before the vector is made: C++ leaves the order of a
+// call's arguments unspecified).
+Eigen::Vector3d Draw3(std::uniform_real_distribution<double>& dist, std::mt19937& rng) {
+  const double x = dist(rng), y = dist(rng), z = dist(rng);
+  return {x, y, z};
+}
+
 // A mesh of @p vertices random points and @p faces triangles over them.
 geometry::TriangleMesh RandomMesh(std::int64_t vertices, std::int64_t faces) {
   std::mt19937 rng(7);
@@ -115,8 +122,7 @@ geometry::TriangleMesh RandomMesh(std::int64_t vertices, std::int64_t faces) {
   std::uniform_int_distribution<int> index(0, static_cast<int>(vertices) - 1);
   geometry::TriangleMesh mesh;
   mesh.V.resize(3, vertices);
-  for (std::int64_t i = 0; i < vertices; ++i)
-    mesh.V.col(i) = Eigen::Vector3d(coord(rng), coord(rng), coord(rng));
+  for (std::int64_t i = 0; i < vertices; ++i) mesh.V.col(i) = Draw3(coord, rng);
   mesh.F.resize(3, faces);
   for (std::int64_t f = 0; f < faces; ++f) {
     const int a = index(rng);
@@ -133,9 +139,8 @@ geometry::PointCloud RandomCloud(std::int64_t points) {
   cloud.points.resize(3, points);
   cloud.normals.resize(3, points);
   for (std::int64_t i = 0; i < points; ++i) {
-    cloud.points.col(i) = Eigen::Vector3d(coord(rng), coord(rng), coord(rng));
-    cloud.normals.col(i) =
-        Eigen::Vector3d(coord(rng), coord(rng), coord(rng) + 1.0).normalized();
+    cloud.points.col(i) = Draw3(coord, rng);
+    cloud.normals.col(i) = (Draw3(coord, rng) + Eigen::Vector3d::UnitZ()).normalized();
   }
   return cloud;
 }

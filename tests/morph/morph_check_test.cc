@@ -118,8 +118,6 @@ TEST_F(MorphCheckTest, ReachReadsHowFarTheUncoveredPartLies) {
   }
 }
 
-// MorphCarcass is AlignCoarse then MorphFromCoarse; the benchmark's --start-from-truth relies
-// on the second going on from whatever coarse result it is handed.
 // The ambiguity compares the chosen placement with the runner-up as both stood when the
 // choice was made; the chosen one's fit goes on after that, and its lower disagreement then
 // must not read as a clearer choice.
@@ -144,6 +142,8 @@ TEST_F(MorphCheckTest, AmbiguityComparesBothPlacementsWhenTheChoiceWasMade) {
   EXPECT_NE(check.concern.find("placement ambiguous"), std::string::npos) << check.concern;
 }
 
+// MorphCarcass is AlignCoarse then MorphFromCoarse; the benchmark's --start-from-truth relies
+// on the second going on from whatever coarse result it is handed.
 TEST_F(MorphCheckTest, MorphFromCoarseGoesOnFromTheCoarseResultItIsGiven) {
   const Eigen::Matrix3Xd cloud = test::HangingCloud(*carcass_, 2000003u, 0.003);
   const MorphOptions options = Upright();

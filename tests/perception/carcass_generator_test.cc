@@ -178,6 +178,38 @@ TEST_F(CarcassTemplateTest, AJointsAnglesAreDrawnLastAxisFirst) {
   EXPECT_TRUE(SampleCarcassPose(42).bones[kLumbar].rotation.isApprox(expected, 1e-15));
 }
 
+// Seed 42 as every benchmark's lambs were drawn: a draw moved anywhere in SampleCarcassPose
+// (a joint, a side, the placement) changes these values, recorded from the GCC build of the
+// code before the draws were named (docs/decisions.md).
+TEST_F(CarcassTemplateTest, TheDrawsGiveTheLambsTheBenchmarksWereRunOn) {
+  const CarcassPose pose = SampleCarcassPose(42);
+  const auto row = [](const Eigen::Matrix3d& R, int r) { return Eigen::Vector3d(R.row(r)); };
+  const auto near = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    return (a - b).norm() < 1e-12;
+  };
+  EXPECT_EQ(pose.global_scale, 0.99671462721428261);
+  const Eigen::Matrix3d& thigh_left = pose.bones[kThighLeft].rotation;
+  const Eigen::Matrix3d& thigh_right = pose.bones[kThighRight].rotation;
+  const Eigen::Matrix3d& arm_left = pose.bones[kUpperArmLeft].rotation;
+  const Eigen::Matrix3d& arm_right = pose.bones[kUpperArmRight].rotation;
+  EXPECT_TRUE(near(row(thigh_left, 0),
+                   {0.99923291370182366, -0.0066334758090451649, 0.038595092611037787}));
+  EXPECT_TRUE(near(row(thigh_left, 1), {0.0, 0.98554912835055042, 0.16938983324707027}));
+  EXPECT_TRUE(near(row(thigh_right, 0),
+                   {0.99708041854374529, -0.0049348138822651964, -0.076198993225482958}));
+  EXPECT_TRUE(near(row(thigh_right, 1), {0.0, 0.99790950278627055, -0.064626807509408996}));
+  EXPECT_TRUE(
+      near(row(arm_left, 0), {0.99166512936779494, -0.028239709059988499, -0.12570914854600551}));
+  EXPECT_TRUE(near(row(arm_left, 1), {0.0, 0.97568424740499216, -0.21918085994391481}));
+  EXPECT_TRUE(
+      near(row(arm_right, 0), {0.9994279614328575, -0.013029233081065031, 0.031208796700321641}));
+  EXPECT_TRUE(near(row(arm_right, 1), {0.0, 0.92280829232620587, 0.38525946531395155}));
+  EXPECT_TRUE(near(row(pose.X_WorldBody.linear(), 0),
+                   {-0.017313181602597094, -0.98511846748479992, 0.17100251098505748}));
+  EXPECT_TRUE(near(pose.X_WorldBody.translation(),
+                   {-0.19451534156763844, 0.2637978380115632, -0.13512899426691721}));
+}
+
 // angle_scale widens the joints' ranges and nothing else: the same seed draws the same
 // proportions and placement; at 0 every joint is straight.
 TEST_F(CarcassTemplateTest, TheAngleScaleTurnsTheJointsAndNothingElse) {
