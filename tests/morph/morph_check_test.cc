@@ -132,6 +132,17 @@ TEST_F(MorphCheckTest, AmbiguityComparesBothPlacementsWhenTheChoiceWasMade) {
   // The posture fit's remaining rounds lowered the chosen placement's disagreement.
   EXPECT_LT(coarse.disagreement, coarse.choice_disagreement);
 
+  // Chosen rigidly (no posture fit before the choice): the same ratio, of the rigid fits.
+  MorphOptions rigid = Upright();
+  rigid.coarse.articulated_candidates = 0;
+  const CarcassResult by_rigid_fits =
+      MorphCarcass(*model_, carcass_->annotations, cloud, {}, rigid);
+  ASSERT_TRUE(by_rigid_fits.ok) << by_rigid_fits.error;
+  EXPECT_GT(by_rigid_fits.coarse.choice_disagreement, 0.0);
+  EXPECT_EQ(by_rigid_fits.coarse.choice_disagreement, by_rigid_fits.coarse.disagreement);
+  EXPECT_EQ(by_rigid_fits.check.ambiguity,
+            by_rigid_fits.coarse.choice_disagreement / by_rigid_fits.coarse.runner_up_disagreement);
+
   // Two placements alike at the choice, the chosen one fitted far better afterwards.
   CoarseResult alike = coarse;
   alike.choice_disagreement = 0.99 * alike.runner_up_disagreement;
