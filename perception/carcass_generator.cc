@@ -104,7 +104,7 @@ CarcassPose SampleCarcassPose(std::uint64_t seed, const PoseOptions& options) {
   auto uniform = [&rng](double lo, double hi) {
     return std::uniform_real_distribution<double>(lo, hi)(rng);
   };
-  VB_DEMAND(options.angle_scale >= 0.0 && options.angle_scale <= 4.0);
+  VB_DEMAND(options.angle_scale >= 0.0 && options.angle_scale <= kMaxAngleScale);
   CarcassPose pose;
   auto& b = pose.bones;
   // A joint angle in degrees, drawn from [lo, hi] times the scale.

@@ -34,13 +34,17 @@ struct TemplateOptions {
 /// @throws std::logic_error if the construction breaks one of its own invariants.
 CarcassTemplate BuildCarcassTemplate(const TemplateOptions& options = {});
 
+/// The widest PoseOptions::angle_scale, a whole number: every range 4 times the line's (the
+/// pelvis then turns up to 100 degrees on the hook).
+inline constexpr double kMaxAngleScale = 4.0;
+
 struct PoseOptions {
   /// Any rotation and a translation up to max_translation_m per axis; otherwise hanging
   /// upright (+z up) and turned only about the vertical.
   bool arbitrary_orientation = true;
   double max_translation_m = 0.5;
   /// Every joint's range of angles times this: 1 draws the line's poses, more draws poses a
-  /// line would not make (a benchmark of wider poses). @pre 0 to 4.
+  /// line would not make (a benchmark of wider poses). @pre 0 to kMaxAngleScale.
   double angle_scale = 1.0;
 };
 

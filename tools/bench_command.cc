@@ -172,8 +172,9 @@ int RunBenchCommand(const BenchOptions& given) {
   if (given.stage != "coarse" && given.stage != "full")
     throw InputError("bench: stage '" + given.stage + "' is neither 'coarse' nor 'full'");
   if (given.pairs < 1) throw InputError("bench: --pairs must be positive");
-  if (!(given.pose_scale >= 0.0 && given.pose_scale <= 4.0))
-    throw InputError("bench: --pose-scale must be within 0 to 4");
+  if (!(given.pose_scale >= 0.0 && given.pose_scale <= perception::kMaxAngleScale))
+    throw InputError("bench: --pose-scale must be within 0 to " +
+                     std::to_string(static_cast<int>(perception::kMaxAngleScale)));
   // Every extra shape is read and modelled before the run: a file that cannot be stops the
   // bench at once (exit 2, naming it), not after minutes of lamb rows.
   for (const std::filesystem::path& path : given.shapes) {

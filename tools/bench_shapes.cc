@@ -334,6 +334,10 @@ int RunShapeBench(const ShapeBenchOptions& options) {
   if (!(options.shadow_fraction > 0 && options.shadow_fraction < 1)) {
     throw InputError("bench shapes: --shadow-fraction must lie in (0, 1)");
   }
+  if (!(options.lamb_pose_scale >= 0.0 && options.lamb_pose_scale <= perception::kMaxAngleScale)) {
+    throw InputError("bench shapes: --lamb-pose-scale must be within 0 to " +
+                     std::to_string(static_cast<int>(perception::kMaxAngleScale)));
+  }
   if (!(options.clutter_fraction > 0 && options.clutter_fraction <= 1)) {
     throw InputError("bench shapes: --clutter-fraction must lie in (0, 1]");
   }

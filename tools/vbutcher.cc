@@ -177,7 +177,7 @@ int main(int argc, char** argv) {
   bench_cmd
       ->add_option("--pose-scale", bench.pose_scale,
                    "The lambs' joint angle ranges times this (1: the line's poses; up to 4)")
-      ->check(CLI::Range(0.0, 4.0))
+      ->check(CLI::Range(0.0, vb::perception::kMaxAngleScale))
       ->capture_default_str();
   bench_cmd
       ->add_option("--shapes", bench.shapes,
@@ -317,7 +317,7 @@ int main(int argc, char** argv) {
   shape_bench_cmd
       ->add_option("--lamb-pose-scale", shape_bench.lamb_pose_scale,
                    "The lambs' joint angle ranges times this (1: the line's poses; up to 4)")
-      ->check(CLI::Range(0.0, 4.0))
+      ->check(CLI::Range(0.0, vb::perception::kMaxAngleScale))
       ->capture_default_str();
   shape_bench_cmd->add_option("--max-pairs", shape_bench.max_pairs, "Per shape, the first n pairs (0: all)")
       ->capture_default_str();
