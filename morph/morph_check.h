@@ -54,8 +54,9 @@ struct MorphCheckOptions {
   double explained_distance = 0.02;
   double noise_allowance = 0.75;
   /// Confidence falls linearly from 1 at ambiguity_start to 0 at 1: from just above the
-  /// largest ambiguity of a right lamb placement on clouds up to 8 mm (docs/decisions.md).
-  double ambiguity_start = 0.96;
+  /// largest ambiguity of a right lamb placement on the rig's recordings (0.98;
+  /// docs/decisions.md).
+  double ambiguity_start = 0.99;
   /// Confidence halves at this unexplained fraction (and falls as its square beyond).
   double unexplained_scale = 0.08;
   /// Confidence falls linearly from 1 at stretch_start to 0 at stretch_end: from 1.2 times

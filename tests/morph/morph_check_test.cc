@@ -145,10 +145,10 @@ TEST_F(MorphCheckTest, AmbiguityComparesBothPlacementsWhenTheChoiceWasMade) {
 
   // Two placements alike at the choice, the chosen one fitted far better afterwards.
   CoarseResult alike = coarse;
-  alike.choice_disagreement = 0.99 * alike.runner_up_disagreement;
+  alike.choice_disagreement = 0.999 * alike.runner_up_disagreement;
   alike.disagreement = 0.5 * alike.runner_up_disagreement;
   const MorphCheck check = CheckMorph(*model_, alike, good.dense);
-  EXPECT_NEAR(check.ambiguity, 0.99, 1e-12);
+  EXPECT_NEAR(check.ambiguity, 0.999, 1e-12);
   EXPECT_LT(check.confidence, 0.3);
   EXPECT_NE(check.concern.find("placement ambiguous"), std::string::npos) << check.concern;
 }
