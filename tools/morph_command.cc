@@ -2,12 +2,16 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <limits>
 #include <numbers>
 #include <random>
 #include <stdexcept>
+#include <string_view>
+#include <utility>
 #include <vector>
 
 #include "geometry/mesh_measures.h"
@@ -40,6 +44,26 @@ constexpr double kMostMetresAcross = 30.0;
 double AcrossIfNotMetres(const Eigen::Matrix3Xd& points) {
   const double across = geometry::BoundingBoxDiagonal(points);
   return across > kMostMetresAcross || (across > 0 && across < kLeastMetresAcross) ? across : 0.0;
+}
+
+// The units a target file may be in, with metres per unit (TargetUnitsInMetres).
+constexpr std::array<std::pair<std::string_view, double>, 4> kTargetUnits{
+    {{"m", 1.0}, {"cm", 0.01}, {"mm", 0.001}, {"100um", 0.0001}}};
+
+// The unit of kTargetUnits in which a file @p across_in_file across (in its own units) comes
+// nearest, by ratio, to @p template_across metres: what a scan of the same kind of body is
+// most likely in.
+std::string_view LikeliestUnits(double across_in_file, double template_across) {
+  std::string_view best = kTargetUnits.front().first;
+  double best_gap = std::numeric_limits<double>::infinity();
+  for (const auto& [name, metres] : kTargetUnits) {
+    const double gap = std::abs(std::log(across_in_file * metres / template_across));
+    if (gap < best_gap) {
+      best_gap = gap;
+      best = name;
+    }
+  }
+  return best;
 }
 
 // @p error from building a template of @p mesh, read from @p path, as the command's error: the
@@ -129,10 +153,17 @@ geometry::PointCloud ReadTarget(const std::filesystem::path& path, const std::st
 
 }  // namespace
 
+double TargetUnitsInMetres(const std::string& units) {
+  for (const auto& [name, metres] : kTargetUnits)
+    if (units == name) return metres;
+  throw InputError("morph: --target-units: '" + units + "' is none of m, cm, mm, 100um");
+}
+
 int RunMorphCommand(const MorphCommandOptions& options) {
   if (options.stage != "coarse" && options.stage != "full") {
     throw InputError("morph: --stage: '" + options.stage + "' is neither 'coarse' nor 'full'");
   }
+  const double metres_per_unit = TargetUnitsInMetres(options.target_units);
   if (options.template_path.empty() == options.model_path.empty())
     throw InputError("morph: give either --template or --model");
   const bool has_annotations = !options.annotations_path.empty() || !options.model_path.empty();
@@ -183,16 +214,23 @@ int RunMorphCommand(const MorphCommandOptions& options) {
       ThrowTemplateError(options.template_path, mesh, e);
     }
   }
-  const geometry::PointCloud target = ReadTarget(options.target_path, options.mesh_target);
-  // Every length printed below reads the target as metres. A scan exported in millimetres (or
-  // centimetres) against a template in metres morphs just as well, the morph being free of
-  // scale, but the whole-morph check then gives every cut confidence 0 (MorphCheck::size).
+  geometry::PointCloud target = ReadTarget(options.target_path, options.mesh_target);
+  target.points *= metres_per_unit;
+  // Every length printed below is in metres. A scan exported in millimetres (or centimetres)
+  // but read as metres morphs just as well, the morph being free of scale, but the whole-morph
+  // check then gives every cut confidence 0 (MorphCheck::size).
   if (const double across = AcrossIfNotMetres(target.points); across > 0) {
+    const std::string_view likely =
+        LikeliestUnits(across / metres_per_unit, geometry::BoundingBoxDiagonal(model.mesh.V));
     std::fprintf(stderr,
-                 "vbutcher: morph: warning: %s is %.4g across, read as metres: is it in other "
-                 "units? Every length, volume and area below assumes metres (a file in "
-                 "millimetres reads 1000 times too large)\n",
-                 options.target_path.string().c_str(), across);
+                 "vbutcher: morph: warning: %s is %.4g m across, read in %s: is it in other "
+                 "units? Every length, volume and area below is in metres (a file in "
+                 "millimetres read as metres is 1000 times too large); the template is %.3g m "
+                 "across: --target-units %.*s would read it as %.3g m\n",
+                 options.target_path.string().c_str(), across, options.target_units.c_str(),
+                 geometry::BoundingBoxDiagonal(model.mesh.V), static_cast<int>(likely.size()),
+                 likely.data(),
+                 across / metres_per_unit * TargetUnitsInMetres(std::string(likely)));
   }
   // The full stage is the pipeline's own path (morph, whole-morph check, cuts).
   morph::CarcassResult result;
@@ -220,7 +258,12 @@ int RunMorphCommand(const MorphCommandOptions& options) {
                  error.c_str());
     return 3;
   }
-  io::WriteMesh(options.out_path, full ? dense.mesh : coarse.mesh);
+  {
+    // In the target file's units, lying on it.
+    geometry::TriangleMesh out = full ? dense.mesh : coarse.mesh;
+    out.V /= metres_per_unit;
+    io::WriteMesh(options.out_path, out);
+  }
   std::printf(
       "morph: template model %.2f s; target skeleton %.3f s, association %.3f s (%ld candidates, "
       "rms %.4g of the size, placed by %s), deformation %.3f s (%d iterations, %s); coarse total "
@@ -280,9 +323,10 @@ int RunMorphCommand(const MorphCommandOptions& options) {
     for (double x : d) sum += x;
     std::printf(
         "morph: fit: scan to morph distance mean %.1f mm, p95 %.1f mm, max %.1f mm (%zu "
-        "scan points, metres assumed)\n",
+        "scan points, read in %s)\n",
         1000 * sum / static_cast<double>(d.size()),
-        1000 * d[std::min(d.size() - 1, d.size() * 95 / 100)], 1000 * d.back(), d.size());
+        1000 * d[std::min(d.size() - 1, d.size() * 95 / 100)], 1000 * d.back(), d.size(),
+        options.target_units.c_str());
     const morph::Similarity placed =
         morph::Similarity::FromUmeyama(Eigen::umeyama(model.mesh.V, dense.mesh.V, true));
     const Eigen::AngleAxisd turn(placed.R);

@@ -27,7 +27,16 @@ struct MorphCommandOptions {
   /// How a target mesh is read: "auto" (its surface when meshed unevenly, else its vertices),
   /// "vertices" or "surface" (sampled uniformly over its area).
   std::string mesh_target = "auto";
+  /// The target file's length unit: "m", "cm", "mm" or "100um" (TargetUnitsInMetres). The
+  /// target is read into metres; the deformed template is written back in this unit, so it
+  /// lies on the file it was morphed onto; the reports and printed figures stay in metres.
+  std::string target_units = "m";
 };
+
+/// Metres per unit of @p units ("m" 1, "cm" 0.01, "mm" 0.001, "100um" 0.0001: the units scans
+/// and recorders write lengths in).
+/// @throws InputError naming --target-units for any other unit.
+double TargetUnitsInMetres(const std::string& units);
 
 /// `vbutcher morph`: loads the template and target, morphs, writes the deformed template
 /// (template vertex order and faces) and optionally a JSON report; with annotations and the

@@ -98,6 +98,12 @@ int main(int argc, char** argv) {
                    "over its area); auto: its surface when its vertices cover it unevenly")
       ->check(CLI::IsMember({"auto", "vertices", "surface"}))
       ->capture_default_str();
+  morph_cmd
+      ->add_option("--target-units", morph.target_units,
+                   "The target file's length unit; it is read into metres, the deformed "
+                   "template written back in it")
+      ->check(CLI::IsMember({"m", "cm", "mm", "100um"}))
+      ->capture_default_str();
   add_threads(morph_cmd, morph.threads, "Threads the morph runs on");
   morph_cmd->add_option("--report", morph.report_path,
                         "JSON report of timings, features, association, solver");

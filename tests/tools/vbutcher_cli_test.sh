@@ -145,7 +145,7 @@ check "morph --stage full reports the fit to the scan" 0 "morph: fit: scan to mo
   "$vbutcher" morph --template "$work/set/template.ply" --target "$work/zero_normals.ply" --out "$work/z.ply" \
   --stage full --annotations "$work/set/template_annotations.yaml"
 # That scan is in metres: no warning about its units.
-if grep -q "read as metres" <<<"$last_out"; then
+if grep -q "other units" <<<"$last_out"; then
   echo "FAIL: a scan in metres was warned about its units"; failures=$((failures + 1))
 else
   echo "ok: a scan in metres is not warned about its units"
@@ -154,9 +154,38 @@ fi
 awk 'body { $1 *= 1000; $2 *= 1000; $3 *= 1000 } { print } /^end_header/ { body = 1 }' \
   "$work/zero_normals.ply" > "$work/millimetres.ply"
 check "morph warns that a scan 1000 times a body's size is read as metres" 0 \
-  "millimetres.ply is [0-9.]* across, read as metres" \
+  "millimetres.ply is [0-9.]* m across, read in m:" \
   "$vbutcher" morph --template "$work/set/template.ply" --target "$work/millimetres.ply" --out "$work/mm.ply" \
   --stage coarse
+grep -q -- "--target-units mm would read it as 1\.[0-9]* m" <<<"$last_out" ||
+  { echo "FAIL: the units warning does not name --target-units mm"; failures=$((failures + 1)); }
+# Told its units, the same scan morphs as the one in metres: no warning, the check reads the
+# carcass's size, and the deformed template is written in millimetres, lying on the scan.
+check "morph --target-units mm reads a scan in millimetres" 0 "size [01]\.[0-9]* -> confidence" \
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/millimetres.ply" --out "$work/mm.ply" \
+  --stage full --annotations "$work/set/template_annotations.yaml" --target-units mm
+if grep -q "other units" <<<"$last_out"; then
+  echo "FAIL: a scan whose units were given was warned about them"; failures=$((failures + 1))
+fi
+/usr/bin/python3 - "$work/mm.ply" "$work/z.ply" <<'PY' || failures=$((failures + 1))
+import sys
+import numpy as np
+def vertices(path):
+    data = open(path, "rb").read()
+    head, body = data.split(b"end_header\n", 1)
+    lines = head.decode().splitlines()
+    count = int([l for l in lines if l.startswith("element vertex")][0].split()[2])
+    props = [l for l in lines if l.startswith("property double")]
+    return np.frombuffer(body[:8 * len(props) * count], "<f8").reshape(count, len(props))[:, :3]
+mm, metres = vertices(sys.argv[1]), vertices(sys.argv[2])
+gap = np.abs(mm / 1000 - metres).max()
+if gap > 1e-3:
+    sys.exit("FAIL: the morph of the scan in mm, in metres, is %.4f m from the one in metres" % gap)
+print("ok: the morph of the scan in mm is written in mm (%.2g m from the one in metres)" % gap)
+PY
+check "morph refuses an unknown unit" 2 "target-units" \
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/millimetres.ply" --out "$work/mm.ply" \
+  --target-units km
 # A cloud much denser than its noise: the morph reads and uses it at every n-th point.
 check "synth writes a dense noisy cloud" 0 "template:" "$vbutcher" synth --out "$work/dense" --count 1 \
   --seed 5 --sigma-mm 16 --cloud --cloud-points 80000
