@@ -10,6 +10,7 @@
 #include <numbers>
 #include <random>
 #include <stdexcept>
+#include <string>
 #include <string_view>
 #include <utility>
 #include <vector>
@@ -64,6 +65,13 @@ std::string_view LikeliestUnits(double across_in_file, double template_across) {
     }
   }
   return best;
+}
+
+// @p x with 3 significant digits, as printf's %.3g.
+std::string FormatG(double x) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.3g", x);
+  return text;
 }
 
 // @p error from building a template of @p mesh, read from @p path, as the command's error: the
@@ -220,17 +228,22 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   // but read as metres morphs just as well, the morph being free of scale, but the whole-morph
   // check then gives every cut confidence 0 (MorphCheck::size).
   if (const double across = AcrossIfNotMetres(target.points); across > 0) {
-    const std::string_view likely =
-        LikeliestUnits(across / metres_per_unit, geometry::BoundingBoxDiagonal(model.mesh.V));
+    const double template_across = geometry::BoundingBoxDiagonal(model.mesh.V);
+    const std::string_view likely = LikeliestUnits(across / metres_per_unit, template_across);
+    // A unit to suggest only when another one brings the file nearer the template's size.
+    const std::string hint =
+        likely == options.target_units
+            ? std::string()
+            : "; the template is " + FormatG(template_across) + " m across: --target-units " +
+                  std::string(likely) + " would read it as " +
+                  FormatG(across / metres_per_unit * TargetUnitsInMetres(std::string(likely))) +
+                  " m";
     std::fprintf(stderr,
                  "vbutcher: morph: warning: %s is %.4g m across, read in %s: is it in other "
                  "units? Every length, volume and area below is in metres (a file in "
-                 "millimetres read as metres is 1000 times too large); the template is %.3g m "
-                 "across: --target-units %.*s would read it as %.3g m\n",
+                 "millimetres read as metres is 1000 times too large)%s\n",
                  options.target_path.string().c_str(), across, options.target_units.c_str(),
-                 geometry::BoundingBoxDiagonal(model.mesh.V), static_cast<int>(likely.size()),
-                 likely.data(),
-                 across / metres_per_unit * TargetUnitsInMetres(std::string(likely)));
+                 hint.c_str());
   }
   // The full stage is the pipeline's own path (morph, whole-morph check, cuts).
   morph::CarcassResult result;
