@@ -101,6 +101,17 @@ struct ArticulationOptions {
   /// only the part from the pivot out moving. 1: the root alone. The coarse stage fits from
   /// the swing about the roots alone as well (AlignCoarse).
   int limb_swing_pivots = 4;
+  /// Target limbs reclaimed (ReclaimLimbs), for the chosen placement, after its posture fit: a
+  /// target limb (a branch of the target's skeleton) whose surface points lie farther than
+  /// reclaim_uncovered from the posed template on average, template sizes, gets the template
+  /// limb whose posed root lies within reclaim_root of its skeleton and that lies farthest
+  /// from every target limb, turned onto it; the fit is run again from there and kept by the
+  /// same rule as the turn (limb_turn_gain). Closest points leave a limb the fit laid on its
+  /// neighbour's target limb there (two template fore legs on one target fore leg, the other
+  /// bare), and neither the turn, which pairs limbs by their roots, nor the swing, which
+  /// scores one limb's directions at a time, moves it off. 0 turns it off.
+  double reclaim_uncovered = 0.04;
+  double reclaim_root = 0.15;
   /// The data weight per graph node: each pair's weight is w_data times the node count over
   /// the pair count, so the balance with the regularisers does not depend on the sampling.
   EmbeddedDeformationOptions deformation{

@@ -480,14 +480,15 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     // Limbs that turned too far for closest points: the fit again from them turned onto the
     // target's limbs (TurnLimbs), from them swung about their roots to where they explain the
     // target best (SwingLimbs), and swung about points out along them as well where that
-    // explains it better still; the best kept when it covers the target clearly better than
-    // the first. The swing's score and the fit's disagreement do not always agree on the
-    // pivot, so both swings are fitted.
+    // explains it better still, and from limbs turned onto target limbs the first fit left
+    // bare (ReclaimLimbs); the best kept when it covers the target clearly better than the
+    // first. The swing's score and the fit's disagreement do not always agree on the pivot,
+    // so both swings are fitted.
     if (turn_limbs) {
-      std::array<int, 3> moved{0, 0, 0};
+      std::array<int, 4> moved{0, 0, 0, 0};
       int beyond_roots = 0;
       RootSwing about_roots;
-      std::array<DeformationState, 3> starts;
+      std::array<DeformationState, 4> starts;
       starts[0] = TurnLimbs(model, guide, target, target_index, to_target, options.articulation,
                             &moved[0], &first_state);
       starts[2] = SwingLimbs(model, guide, target, target_index, to_target, first_state,
@@ -497,9 +498,11 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
       // No limb moved far about a pivot beyond its root: that start differs from the swing
       // about the roots by nudges the fit makes itself, if at all.
       if (beyond_roots == 0) moved[2] = 0;
+      starts[3] = ReclaimLimbs(model, guide, target, to_target, first_state, options.articulation,
+                               &moved[3]);
       // The fits are independent: each on one of the pool's threads; on a tie the earlier
       // start is preferred, whatever the threads.
-      std::array<ArticulationResult, 3> again;
+      std::array<ArticulationResult, 4> again;
       ForEach(pool, static_cast<int>(again.size()), [&](int k) {
         const auto s = static_cast<std::size_t>(k);
         if (moved[s] == 0) return;

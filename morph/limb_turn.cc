@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <utility>
 #include <vector>
@@ -427,6 +428,94 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
     about_roots->state = std::move(roots_state);
   } else if (about_roots != nullptr) {
     *about_roots = RootSwing{state, moved};  // about the roots alone already
+  }
+  return state;
+}
+
+DeformationState ReclaimLimbs(const TemplateModel& model, const BranchGuide& guide,
+                              const Eigen::Matrix3Xd& target, const Similarity& placement,
+                              const DeformationState& start, const ArticulationOptions& options,
+                              int* reclaimed) {
+  VB_DEMAND(placement.Usable() && reclaimed != nullptr);
+  VB_DEMAND(guide.limbs != nullptr &&
+            static_cast<int>(guide.limbs->node_branch.size()) == model.graph.num_nodes());
+  VB_DEMAND(static_cast<int>(start.t.size()) == model.graph.num_nodes());
+  *reclaimed = 0;
+  DeformationState state = start;
+  const int num_limbs = guide.num_template_branches(), num_theirs = guide.num_target_branches();
+  if (num_limbs == 0 || num_theirs == 0 || !(options.reclaim_uncovered > 0)) return state;
+  constexpr int n = BranchGuide::kSamples;
+  const Similarity back = placement.Inverse();
+  // The target's limbs, in the template's frame, by how far the posed template leaves their
+  // points.
+  const Eigen::Matrix3Xd posed = DeformPoints(model.graph, model.vertex_weights, model.V, start);
+  const PointIndex posed_index(posed);
+  std::vector<std::pair<double, int>> uncovered;  // (-distance, target branch)
+  for (int b = 0; b < num_theirs; ++b) {
+    const std::vector<int>& support = guide.target_support[static_cast<std::size_t>(b)];
+    if (support.empty()) continue;
+    double sum = 0.0;
+    int count = 0;
+    for (std::size_t i = 0; i < support.size(); i += 1 + support.size() / kCheckPoints, ++count) {
+      const Eigen::Vector3d p = back(target.col(support[i]));
+      sum += (posed.col(posed_index.Nearest(p)) - p).norm();
+    }
+    if (sum / count > options.reclaim_uncovered) uncovered.emplace_back(-sum / count, b);
+  }
+  if (uncovered.empty()) return state;
+  std::sort(uncovered.begin(), uncovered.end());
+  Eigen::Matrix3Xd theirs(3, guide.target_points.cols());
+  for (Eigen::Index k = 0; k < theirs.cols(); ++k) theirs.col(k) = back(guide.target_points.col(k));
+  const auto branch = [&](int b) { return theirs.middleCols(static_cast<Eigen::Index>(b) * n, n); };
+  // Each template limb's samples as posed, and how far its outer half lies from every target
+  // limb: one the fit left on no target limb is the one to move.
+  const Eigen::Matrix3Xd limbs =
+      DeformPoints(model.graph, guide.limbs->weights, guide.limbs->rest, start);
+  std::vector<double> astray(static_cast<std::size_t>(num_limbs));
+  for (int a = 0; a < num_limbs; ++a) {
+    double least = std::numeric_limits<double>::infinity();
+    for (int b = 0; b < num_theirs; ++b) {
+      double sum = 0.0;
+      for (int k = n / 2; k < n; ++k)
+        sum += (branch(b).colwise() - limbs.col(BranchGuide::Column(a, k)))
+                   .colwise()
+                   .norm()
+                   .minCoeff();
+      least = std::min(least, sum / (n - n / 2));
+    }
+    astray[static_cast<std::size_t>(a)] = least;
+  }
+  std::vector<bool> movable(static_cast<std::size_t>(num_limbs), false);
+  for (const int a : guide.limbs->node_branch)
+    if (a >= 0) movable[static_cast<std::size_t>(a)] = true;
+  for (const auto& [ignored, b] : uncovered) {
+    int pick = -1;
+    double best = std::numeric_limits<double>::infinity();
+    for (int a = 0; a < num_limbs; ++a) {
+      if (!movable[static_cast<std::size_t>(a)]) continue;
+      const Eigen::Vector3d root = limbs.col(BranchGuide::Column(a, 0));
+      const double reach = (branch(b).colwise() - root).colwise().norm().minCoeff();
+      if (!(reach <= options.reclaim_root)) continue;
+      const double cost = reach - astray[static_cast<std::size_t>(a)];
+      if (cost < best) {
+        best = cost;
+        pick = a;
+      }
+    }
+    if (pick < 0) continue;
+    const auto rest = guide.limbs->rest.middleCols(static_cast<Eigen::Index>(pick) * n, n);
+    const Eigen::Vector3d root_rest = rest.col(0);
+    const Eigen::Vector3d root = limbs.col(BranchGuide::Column(pick, 0));
+    const Eigen::Vector3d axis = rest.rowwise().mean() - root_rest;
+    const Eigen::Vector3d wanted = branch(b).rowwise().mean() - root;
+    if (!(axis.norm() > 0 && wanted.norm() > 0)) continue;
+    DeformationState turned;
+    CarriedAtRest(model.graph, guide, pick, 0.0,
+                  Eigen::Quaterniond::FromTwoVectors(axis, wanted).toRotationMatrix(), root_rest,
+                  root, state, &turned);
+    state = std::move(turned);
+    movable[static_cast<std::size_t>(pick)] = false;
+    ++*reclaimed;
   }
   return state;
 }
