@@ -103,10 +103,11 @@ struct ArticulationOptions {
   int limb_swing_pivots = 4;
   /// Target limbs reclaimed (ReclaimLimbs), for the chosen placement, after its posture fit: a
   /// target limb (a branch of the target's skeleton) whose surface points lie farther than
-  /// reclaim_uncovered from the posed template on average, template sizes, gets the template
-  /// limb whose posed root lies within reclaim_root of its skeleton and that lies farthest
-  /// from every target limb, turned onto it; the fit is run again from there and kept by the
-  /// same rule as the turn (limb_turn_gain). Closest points leave a limb the fit laid on its
+  /// reclaim_uncovered from the posed template on average, template sizes, gets one template
+  /// limb turned onto it: of those whose posed root lies within reclaim_root of its skeleton,
+  /// the one whose root's distance less its outer half's distance from every target limb is
+  /// least. The fit is run again from there and kept by the same rule as the turn
+  /// (limb_turn_gain). Closest points leave a limb the fit laid on its
   /// neighbour's target limb there (two template fore legs on one target fore leg, the other
   /// bare), and neither the turn, which pairs limbs by their roots, nor the swing, which
   /// scores one limb's directions at a time, moves it off. 0 turns it off.

@@ -85,8 +85,8 @@ struct CoarseResult {
   /// False when the deformation moved the template away from the target's surface and the
   /// rigid placement was kept instead.
   bool deformation_kept = true;
-  /// Limbs the posture fit turned or swung as wholes before fitting again (TurnLimbs,
-  /// SwingLimbs), when that fit was kept; 0 otherwise.
+  /// Limbs the posture fit turned, swung or reclaimed as wholes before fitting again
+  /// (TurnLimbs, SwingLimbs, ReclaimLimbs), when that fit was kept; 0 otherwise.
   int limbs_turned = 0;
   /// EstimateNormals' passes of the target normals the chosen placement's posture fit paired
   /// with (AlignCoarse's fit_normal_passes when it estimated them; 1 otherwise).

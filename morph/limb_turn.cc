@@ -440,6 +440,9 @@ DeformationState ReclaimLimbs(const TemplateModel& model, const BranchGuide& gui
   VB_DEMAND(guide.limbs != nullptr &&
             static_cast<int>(guide.limbs->node_branch.size()) == model.graph.num_nodes());
   VB_DEMAND(static_cast<int>(start.t.size()) == model.graph.num_nodes());
+  VB_DEMAND(static_cast<int>(guide.target_support.size()) == guide.num_target_branches() &&
+            guide.target_points.cols() ==
+                static_cast<Eigen::Index>(guide.num_target_branches()) * BranchGuide::kSamples);
   *reclaimed = 0;
   DeformationState state = start;
   const int num_limbs = guide.num_template_branches(), num_theirs = guide.num_target_branches();
@@ -468,7 +471,7 @@ DeformationState ReclaimLimbs(const TemplateModel& model, const BranchGuide& gui
   for (Eigen::Index k = 0; k < theirs.cols(); ++k) theirs.col(k) = back(guide.target_points.col(k));
   const auto branch = [&](int b) { return theirs.middleCols(static_cast<Eigen::Index>(b) * n, n); };
   // Each template limb's samples as posed, and how far its outer half lies from every target
-  // limb: one the fit left on no target limb is the one to move.
+  // limb: the farther, the readier it is to move.
   const Eigen::Matrix3Xd limbs =
       DeformPoints(model.graph, guide.limbs->weights, guide.limbs->rest, start);
   std::vector<double> astray(static_cast<std::size_t>(num_limbs));

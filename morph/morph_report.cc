@@ -124,8 +124,9 @@ void WriteCutsReport(const std::filesystem::path& path, const io::Annotations& a
   j["format"] = "vbutcher-cuts";
   j["version"] = 1;
   j["template"] = annotations.template_name;
-  // Lengths are in the target's units (metres for a rig cloud), volumes and areas their cube
-  // and square; the rest are fractions.
+  // Lengths are in metres (the target as the morph read it: a rig cloud, or a scan read with
+  // `vbutcher morph --target-units`), volumes and areas their cube and square; the rest are
+  // fractions.
   j["units"] = {{"length", "m"}, {"volume", "m3"}, {"area", "m2"}};
   nlohmann::json out_cuts = nlohmann::json::array();
   for (const TransferredCut& c : cuts) {

@@ -100,9 +100,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   morph_cmd
       ->add_option("--target-units", morph.target_units,
-                   "The target file's length unit; it is read into metres, the deformed "
-                   "template written back in it")
-      ->check(CLI::IsMember({"m", "cm", "mm", "100um"}))
+                   "The target file's length unit (m, cm, mm or 100um); it is read into "
+                   "metres, the deformed template written back in it")
       ->capture_default_str();
   add_threads(morph_cmd, morph.threads, "Threads the morph runs on");
   morph_cmd->add_option("--report", morph.report_path,

@@ -561,9 +561,15 @@ TEST_F(TurnLimbsTest, ReclaimsTheLegATargetLimbWantsAndNothingElse) {
             error(identity));
   EXPECT_EQ(none, 0);
   const Eigen::Matrix3Xd still = SwungLeg(0.0);
-  ReclaimLimbs(*model_, GuideTo(*model_, still), still, Similarity{}, identity,
-               ArticulationOptions{}, &none);
+  none = -1;
+  const DeformationState kept = ReclaimLimbs(*model_, GuideTo(*model_, still), still, Similarity{},
+                                             identity, ArticulationOptions{}, &none);
   EXPECT_EQ(none, 0);
+  EXPECT_LT((DeformPoints(model_->graph, model_->vertex_weights, model_->V, kept) - model_->V)
+                .colwise()
+                .norm()
+                .maxCoeff(),
+            1e-12);
 }
 
 }  // namespace

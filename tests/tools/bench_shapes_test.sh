@@ -4,8 +4,9 @@
 # camera shadow's and the clutter's shares, each family's full-morph error against its
 # measured value, clutter against clean, the example morphs and the PNG as an image. Then a
 # humanoid whose pose changed far, placed the right way round; a creature's foreleg swung about
-# a point out along its limb; a leg the dense stage keeps where the posture fit turned it; and
-# the lamb in wider poses (--lamb-pose-scale).
+# a point out along its limb; a leg the dense stage keeps where the posture fit turned it; a fore
+# leg turned onto the target fore leg the posture fit left bare; and the lamb in wider poses
+# (--lamb-pose-scale).
 set -euo pipefail
 vbutcher=$1
 work=$(mktemp -d)
