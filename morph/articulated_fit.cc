@@ -103,6 +103,13 @@ std::vector<std::pair<int, int>> PairBranches(const BranchGuide& guide,
   return pairs;
 }
 
+Eigen::Matrix3Xd TargetBranchesIn(const BranchGuide& guide, const Similarity& to_template) {
+  Eigen::Matrix3Xd out(3, guide.target_points.cols());
+  for (Eigen::Index k = 0; k < out.cols(); ++k)
+    out.col(k) = to_template(guide.target_points.col(k));
+  return out;
+}
+
 BranchGuide MakeBranchGuide(const TemplateModel& model, const SkeletonGraph& target_skeleton,
                             const FeatureNodes& target_features) {
   BranchGuide guide;
@@ -214,12 +221,8 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
   // The target's branch samples in the template's frame.
   const bool use_branches = guide != nullptr && options.branch_weight > 0 &&
                             guide->num_template_branches() > 0 && guide->num_target_branches() > 0;
-  Eigen::Matrix3Xd branch_targets;
-  if (use_branches) {
-    branch_targets.resize(3, guide->target_points.cols());
-    for (Eigen::Index k = 0; k < branch_targets.cols(); ++k)
-      branch_targets.col(k) = back(guide->target_points.col(k));
-  }
+  const Eigen::Matrix3Xd branch_targets =
+      use_branches ? TargetBranchesIn(*guide, back) : Eigen::Matrix3Xd();
   double branch_weight = options.branch_weight;
 
   std::vector<PointConstraint> constraints;

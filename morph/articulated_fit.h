@@ -143,6 +143,10 @@ struct BranchGuide {
   int num_target_branches() const { return static_cast<int>(target_length.size()); }
 };
 
+/// The guide's target branch samples (BranchGuide::target_points) carried by @p to_template
+/// (the target's frame -> the template's normalised frame), column for column.
+Eigen::Matrix3Xd TargetBranchesIn(const BranchGuide& guide, const Similarity& to_template);
+
 /// Evenly spread column indices of a matrix with @p n columns, about @p wanted of them (every
 /// n / wanted-th, from the first).
 std::vector<int> Spread(Eigen::Index n, int wanted);

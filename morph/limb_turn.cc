@@ -117,8 +117,7 @@ DeformationState TurnLimbs(const TemplateModel& model, const BranchGuide& guide,
   if (turned != nullptr) *turned = 0;
   if (guide.num_template_branches() == 0 || guide.num_target_branches() == 0) return state;
   const Similarity back = placement.Inverse();
-  Eigen::Matrix3Xd theirs(3, guide.target_points.cols());  // template frame
-  for (Eigen::Index k = 0; k < theirs.cols(); ++k) theirs.col(k) = back(guide.target_points.col(k));
+  const Eigen::Matrix3Xd theirs = TargetBranchesIn(guide, back);  // template frame
 
   std::vector<std::vector<int>> limb_nodes(static_cast<std::size_t>(guide.num_template_branches()));
   for (int j = 0; j < model.graph.num_nodes(); ++j) {
@@ -467,8 +466,7 @@ DeformationState ReclaimLimbs(const TemplateModel& model, const BranchGuide& gui
   }
   if (uncovered.empty()) return state;
   std::sort(uncovered.begin(), uncovered.end());
-  Eigen::Matrix3Xd theirs(3, guide.target_points.cols());
-  for (Eigen::Index k = 0; k < theirs.cols(); ++k) theirs.col(k) = back(guide.target_points.col(k));
+  const Eigen::Matrix3Xd theirs = TargetBranchesIn(guide, back);
   const auto branch = [&](int b) { return theirs.middleCols(static_cast<Eigen::Index>(b) * n, n); };
   // Each template limb's samples as posed, and how far its outer half lies from every target
   // limb: the farther, the readier it is to move.

@@ -51,17 +51,17 @@ double AcrossIfNotMetres(const Eigen::Matrix3Xd& points) {
 constexpr std::array<std::pair<std::string_view, double>, 4> kTargetUnits{
     {{"m", 1.0}, {"cm", 0.01}, {"mm", 0.001}, {"100um", 0.0001}}};
 
-// The unit of kTargetUnits in which a file @p across_in_file across (in its own units) comes
-// nearest, by ratio, to @p template_across metres: what a scan of the same kind of body is
-// most likely in.
-std::string_view LikeliestUnits(double across_in_file, double template_across) {
-  std::string_view best = kTargetUnits.front().first;
+// The unit of kTargetUnits (name, metres per unit) in which a file @p across_in_file across
+// (in its own units) comes nearest, by ratio, to @p template_across metres: what a scan of the
+// same kind of body is most likely in.
+std::pair<std::string_view, double> LikeliestUnits(double across_in_file, double template_across) {
+  std::pair<std::string_view, double> best = kTargetUnits.front();
   double best_gap = std::numeric_limits<double>::infinity();
-  for (const auto& [name, metres] : kTargetUnits) {
-    const double gap = std::abs(std::log(across_in_file * metres / template_across));
+  for (const auto& unit : kTargetUnits) {
+    const double gap = std::abs(std::log(across_in_file * unit.second / template_across));
     if (gap < best_gap) {
       best_gap = gap;
-      best = name;
+      best = unit;
     }
   }
   return best;
@@ -229,15 +229,14 @@ int RunMorphCommand(const MorphCommandOptions& options) {
   // check then gives every cut confidence 0 (MorphCheck::size).
   if (const double across = AcrossIfNotMetres(target.points); across > 0) {
     const double template_across = geometry::BoundingBoxDiagonal(model.mesh.V);
-    const std::string_view likely = LikeliestUnits(across / metres_per_unit, template_across);
+    const auto [likely, likely_metres] = LikeliestUnits(across / metres_per_unit, template_across);
     // A unit to suggest only when another one brings the file nearer the template's size.
-    const std::string hint =
-        likely == options.target_units
-            ? std::string()
-            : "; the template is " + FormatG(template_across) + " m across: --target-units " +
-                  std::string(likely) + " would read it as " +
-                  FormatG(across / metres_per_unit * TargetUnitsInMetres(std::string(likely))) +
-                  " m";
+    const std::string hint = likely == options.target_units
+                                 ? std::string()
+                                 : "; the template is " + FormatG(template_across) +
+                                       " m across: --target-units " + std::string(likely) +
+                                       " would read it as " +
+                                       FormatG(across / metres_per_unit * likely_metres) + " m";
     std::fprintf(stderr,
                  "vbutcher: morph: warning: %s is %.4g m across, read in %s: is it in other "
                  "units? Every length, volume and area below is in metres (a file in "
