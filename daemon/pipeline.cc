@@ -656,12 +656,12 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
           "morph %.3f s (clean %.3f, coarse %.3f, dense %.3f, cuts %.3f), send %.3f s, answer "
           "%.3f s, "
           "latency %.3f s; noise %.1f mm; morph check %.2f (ambiguity %.2f, unexplained %.2f, "
-          "reach %.3f, stretch %.2f, size %.2f)",
+          "reach %.3f (noise and spacing %.3f), stretch %.2f, size %.2f)",
           result.seconds, result.cleaning.seconds, result.coarse.total_seconds,
           result.dense.total_seconds, result.cuts_seconds, outcome.send_s, outcome.answer_s,
           report.latency_s, 1000 * result.dense.noise_m, result.check.confidence,
           result.check.ambiguity, result.check.unexplained, result.check.reach,
-          result.check.stretch, result.check.size);
+          result.check.reach_allowance, result.check.stretch, result.check.size);
       text += numbers;
       if (!result.check.concern.empty()) text += ": " + result.check.concern;
       if (result.cleaning.stride > 1) {

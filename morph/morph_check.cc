@@ -16,6 +16,7 @@ MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
                       std::span<const int> nearest_vertex) {
   const Eigen::Matrix3Xd& target = dense.target;
   MorphCheck check;
+  check.noise = dense.noise;
   if (std::isfinite(coarse.runner_up_disagreement) && coarse.runner_up_disagreement > 0)
     check.ambiguity = coarse.choice_disagreement / coarse.runner_up_disagreement;
 
@@ -48,15 +49,23 @@ MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
 
   std::vector<double> logs;
   logs.reserve(3 * static_cast<std::size_t>(model.mesh.F.cols()));
+  double edge_sum = 0.0;  // template sizes
+  long edges = 0;
   for (Eigen::Index f = 0; f < model.mesh.F.cols(); ++f) {
     for (int e = 0; e < 3; ++e) {
       const int a = model.mesh.F(e, f), b = model.mesh.F((e + 1) % 3, f);
       if (a > b) continue;  // each interior edge once (its other face has it the other way)
-      const double rest = size * (model.V.col(a) - model.V.col(b)).norm();
+      const double length = (model.V.col(a) - model.V.col(b)).norm();
+      edge_sum += length;
+      ++edges;
+      const double rest = size * length;
       const double now = (dense.mesh.V.col(a) - dense.mesh.V.col(b)).norm();
       if (rest > 0 && now > 0) logs.push_back(std::abs(std::log(now / rest)));
     }
   }
+  check.reach_allowance =
+      options.reach_noise * check.noise +
+      (edges > 0 ? edge_sum / static_cast<double>(edges) / std::sqrt(3.0) : 0.0);
   if (!logs.empty()) {
     const auto k = logs.begin() + static_cast<std::ptrdiff_t>(0.9 * (logs.size() - 1));
     std::nth_element(logs.begin(), k, logs.end());
@@ -83,9 +92,17 @@ MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
   const double from_stretch = std::clamp(
       (options.stretch_end - check.stretch) / (options.stretch_end - options.stretch_start), 0.0,
       1.0);
-  check.confidence = from_size * from_ambiguity * from_unexplained * from_stretch;
-  char why[200];
-  const double worst = std::min({from_size, from_ambiguity, from_unexplained, from_stretch});
+  // No reach (no target, or no size) is no sign that the morph covers the target.
+  const double from_reach =
+      std::isfinite(check.reach)
+          ? std::clamp((options.reach_end - (check.reach - check.reach_allowance)) /
+                           (options.reach_end - options.reach_start),
+                       0.0, 1.0)
+          : 0.0;
+  check.confidence = from_size * from_ambiguity * from_unexplained * from_stretch * from_reach;
+  char why[300];
+  const double worst =
+      std::min({from_size, from_ambiguity, from_unexplained, from_stretch, from_reach});
   if (worst < 0.9) {
     if (worst == from_size)
       std::snprintf(why, sizeof(why),
@@ -96,6 +113,13 @@ MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
       std::snprintf(why, sizeof(why),
                     "placement ambiguous: a placement turned elsewhere fits %.0f %% as well",
                     100.0 * check.ambiguity);
+    else if (worst == from_reach)
+      std::snprintf(why, sizeof(why),
+                    "the farthest 1 %% of the target lies %.1f %% of the template's size from the "
+                    "morph, %.1f %% more than the noise and the vertex spacing explain: a part put "
+                    "elsewhere, or something attached to the carcass (a gambrel in the region of "
+                    "interest?)",
+                    100.0 * check.reach, 100.0 * (check.reach - check.reach_allowance));
     else if (worst == from_unexplained)
       std::snprintf(why, sizeof(why), "%.0f %% of the target is not covered by the morph",
                     100.0 * check.unexplained);

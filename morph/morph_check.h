@@ -25,11 +25,18 @@ struct MorphCheck {
   double unexplained = 0.0;
   /// 99th percentile of the target points' distances to the morphed template's nearest
   /// vertices, in template sizes: how far the farthest part of the carcass the morph left
-  /// uncovered lies (a limb the template put elsewhere), when that part holds more than 1 %
-  /// of the points. It includes the noise and the vertex spacing (about 0.006 on a clean
-  /// lamb cloud). NaN when there is no target or no size. Reported; it does not lower the
-  /// confidence (docs/decisions.md, "Measured: what the check makes of the shape benchmark").
+  /// uncovered lies (a limb the template put elsewhere, or something attached to the carcass
+  /// such as a gambrel), when that part holds more than 1 % of the points. NaN when there is
+  /// no target or no size.
   double reach = std::numeric_limits<double>::quiet_NaN();
+  /// The target's noise level the dense stage estimated (DenseResult::noise), in template
+  /// sizes: what unexplained and reach allow for.
+  double noise = 0.0;
+  /// The reach a right morph shows from the noise and the template's vertex spacing alone,
+  /// template sizes: MorphCheckOptions::reach_noise noise levels plus the template's mean edge
+  /// length over sqrt(3) (the farthest a point of an equilateral triangle lies from its
+  /// nearest corner). The confidence reads reach less this.
+  double reach_allowance = 0.0;
   /// 90th percentile of |log(edge length morphed / edge length rest)| after the global
   /// scale: how far the morph had to stretch the template to fit.
   double stretch = 0.0;
@@ -59,6 +66,16 @@ struct MorphCheckOptions {
   double ambiguity_start = 0.99;
   /// Confidence halves at this unexplained fraction (and falls as its square beyond).
   double unexplained_scale = 0.08;
+  /// Noise levels reach allows for: the 99th percentile of the distance of points with
+  /// Gaussian noise from their surface is 2.58 standard deviations.
+  double reach_noise = 2.6;
+  /// Confidence falls linearly from 1 at reach_start to 0 at reach_end, reach less
+  /// MorphCheck::reach_allowance, template sizes: from about 3 times the most a right lamb
+  /// morph shows on the line's poses (0.010, clouds at 16 mm) to where a limb put elsewhere
+  /// on the shape benchmark begins (docs/decisions.md, "The check counts the cloud's farthest
+  /// points").
+  double reach_start = 0.03;
+  double reach_end = 0.06;
   /// Confidence falls linearly from 1 at stretch_start to 0 at stretch_end: from 1.2 times
   /// the largest stretch of a right lamb morph on the benchmark (0.17, clouds at 8 mm) to
   /// about the least of a lamb forced upside down (0.25 to 0.34).

@@ -112,6 +112,9 @@ const std::array kKeys = {
     VB_PROFILE_KEY(check.noise_allowance, "noise levels", 0.0, 20.0, false, "noise added to explained_distance"),
     VB_PROFILE_KEY(check.ambiguity_start, kFraction, 0.0, 1.0, true, "confidence falls from this ambiguity"),
     VB_PROFILE_KEY(check.unexplained_scale, kFraction, 1e-4, 1.0, true, "confidence halves at this unexplained share"),
+    VB_PROFILE_KEY(check.reach_noise, "noise levels", 0.0, 20.0, false, "noise the reach allows for"),
+    VB_PROFILE_KEY(check.reach_start, kSize, 0.0, 1.0, true, "confidence falls from this reach beyond the noise"),
+    VB_PROFILE_KEY(check.reach_end, kSize, 0.0, 1.0, true, "confidence reaches 0 at this reach beyond the noise"),
     VB_PROFILE_KEY(check.stretch_start, "log stretch", 0.0, 5.0, true, "confidence falls from this stretch"),
     VB_PROFILE_KEY(check.stretch_end, "log stretch", 0.0, 5.0, true, "confidence reaches 0 at this stretch"),
     VB_PROFILE_KEY(check.min_size, "size ratio", 1e-3, 1.0, true, "confidence is 0 for a morph smaller than this times the template"),
@@ -172,6 +175,8 @@ std::string CheckProfile(const MorphOptions& options) {
     return "clean.max_points_per_vertex must be 0 (off) or at least 1";
   if (!(options.check.stretch_start < options.check.stretch_end))
     return "check.stretch_start must be below check.stretch_end";
+  if (!(options.check.reach_start < options.check.reach_end))
+    return "check.reach_start must be below check.reach_end";
   if (!(options.check.min_size < options.check.max_size))
     return "check.min_size must be below check.max_size";
   if (options.dense.min_normal_neighbours > options.dense.normal_neighbours)

@@ -148,7 +148,8 @@ void WriteCutsReport(const std::filesystem::path& path, const io::Annotations& a
          {"line", line}});
   }
   j["check"] = {{"ambiguity", check.ambiguity}, {"unexplained", check.unexplained},
-                {"reach", check.reach},         {"stretch", check.stretch},
+                {"reach", check.reach},         {"reach_allowance", check.reach_allowance},
+                {"noise", check.noise},         {"stretch", check.stretch},
                 {"size", check.size},           {"confidence", check.confidence},
                 {"concern", check.concern}};
   j["cuts"] = out_cuts;

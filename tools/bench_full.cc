@@ -48,7 +48,8 @@ struct FullRow {
   double coarse_s = 0, normals_s = 0, dense_s = 0, cuts_s = 0, total_s = 0;
   // How well the morph fits, as the pipeline sees it (no ground truth): last dense round.
   double kept_fraction = 0, plane_distance_rel = 0, final_cost = 0;
-  double ambiguity = 0, unexplained = 0, reach = 0, stretch = 0;  // morph::MorphCheck
+  double ambiguity = 0, unexplained = 0, reach = 0, noise = 0, reach_allowance = 0,
+         stretch = 0;  // morph::MorphCheck
 };
 
 double Since(std::chrono::steady_clock::time_point start) {
@@ -141,6 +142,8 @@ FullRow Evaluate(const morph::TemplateModel& model, const io::Annotations& annot
   row.ambiguity = r.check.ambiguity;
   row.unexplained = r.check.unexplained;
   row.reach = r.check.reach;
+  row.noise = r.check.noise;
+  row.reach_allowance = r.check.reach_allowance;
   row.stretch = r.check.stretch;
   row.ok = true;
   const std::vector<morph::TransferredCut>& cuts = r.cuts;
@@ -442,8 +445,8 @@ int RunFullBench(const BenchOptions& options) {
   for (const io::CutAnnotation& cut : carcass.annotations.cuts)
     csv << ",angle_deg_" << cut.name << ",distance_mm_" << cut.name << ",true_morph_distance_mm_"
         << cut.name << ",confidence_" << cut.name << ",slide_error_mm_" << cut.name;
-  csv << ",kept_fraction,plane_distance_rel,final_cost,ambiguity,unexplained,reach,stretch,"
-         "coarse_s,normals_s,dense_s,cuts_s,total_s\n";
+  csv << ",kept_fraction,plane_distance_rel,final_cost,ambiguity,unexplained,reach,noise,"
+         "reach_allowance,stretch,coarse_s,normals_s,dense_s,cuts_s,total_s\n";
   for (const FullRow& r : rows) {
     csv << r.input << ',' << r.sigma_mm << ',' << r.index << ',' << r.ok << ",\"" << r.error
         << "\"," << r.coarse_max_rel << ',' << r.coarse_mean_rel << ',' << r.max_rel << ','
@@ -462,9 +465,9 @@ int RunFullBench(const BenchOptions& options) {
         csv << ",,,,,";
     }
     csv << ',' << r.kept_fraction << ',' << r.plane_distance_rel << ',' << r.final_cost << ','
-        << r.ambiguity << ',' << r.unexplained << ',' << r.reach << ',' << r.stretch << ','
-        << r.coarse_s << ',' << r.normals_s << ',' << r.dense_s << ',' << r.cuts_s << ','
-        << r.total_s << '\n';
+        << r.ambiguity << ',' << r.unexplained << ',' << r.reach << ',' << r.noise << ','
+        << r.reach_allowance << ',' << r.stretch << ',' << r.coarse_s << ',' << r.normals_s << ','
+        << r.dense_s << ',' << r.cuts_s << ',' << r.total_s << '\n';
   }
   std::filesystem::path stem = options.csv;
   stem.replace_extension();

@@ -58,7 +58,8 @@ struct Row {
   double seconds = 0;
   /// The whole-morph check (MorphCheck, default limits) of the full morph; NaN on other rows.
   double confidence = std::nan(""), ambiguity = std::nan(""), unexplained = std::nan("");
-  double reach = std::nan(""), stretch = std::nan(""), size = std::nan("");
+  double reach = std::nan(""), noise = std::nan(""), reach_allowance = std::nan(""),
+         stretch = std::nan(""), size = std::nan("");
 };
 
 double Since(std::chrono::steady_clock::time_point start) {
@@ -499,6 +500,8 @@ int RunShapeBench(const ShapeBenchOptions& options) {
               full_row.ambiguity = check.ambiguity;
               full_row.unexplained = check.unexplained;
               full_row.reach = check.reach;
+              full_row.noise = check.noise;
+              full_row.reach_allowance = check.reach_allowance;
               full_row.stretch = check.stretch;
               full_row.size = check.size;
               if (t == 0 && variant == options.variants.front() &&
@@ -534,7 +537,7 @@ int RunShapeBench(const ShapeBenchOptions& options) {
     std::ofstream csv(options.csv);
     csv << "shape,family,source,pair,pose_change_deg,sigma_mm,variant,method,points,"
            "template_vertices,wrap_alpha,wrap_offset,ok,mean_err_rel,max_err_rel,placement_err_deg,"
-           "seconds,confidence,ambiguity,unexplained,reach,stretch,size\n";
+           "seconds,confidence,ambiguity,unexplained,reach,noise,reach_allowance,stretch,size\n";
     for (const Row& r : rows) {
       csv << r.shape << ',' << r.family << ',' << r.source << ',' << r.pair << ','
           << r.pose_change_deg << ',' << r.sigma_mm << ',' << r.variant << ',' << r.method << ','
@@ -543,7 +546,7 @@ int RunShapeBench(const ShapeBenchOptions& options) {
           << (r.shape == "lamb" ? 0.0 : options.wrap_offset) << ',' << r.ok << ',' << r.mean_err_rel
           << ',' << r.max_err_rel << ',' << r.placement_err_deg << ',' << r.seconds << ','
           << r.confidence << ',' << r.ambiguity << ',' << r.unexplained << ',' << r.reach << ','
-          << r.stretch << ',' << r.size << '\n';
+          << r.noise << ',' << r.reach_allowance << ',' << r.stretch << ',' << r.size << '\n';
     }
     if (!csv) throw std::runtime_error("cannot write " + options.csv.string());
   }

@@ -350,10 +350,12 @@ int RunMorphCommand(const MorphCommandOptions& options) {
         turn.axis().z(), up.x(), up.y(), up.z(), dense.mesh.V.rowwise().mean().x(),
         dense.mesh.V.rowwise().mean().y(), dense.mesh.V.rowwise().mean().z());
     std::printf(
-        "morph: check: ambiguity %.3f, unexplained %.3f, reach %.3f, stretch %.3f, size %.3f -> "
-        "confidence %.2f%s%s\n",
-        result.check.ambiguity, result.check.unexplained, result.check.reach, result.check.stretch,
-        result.check.size, result.check.confidence, result.check.concern.empty() ? "" : ": ",
+        "morph: check: ambiguity %.3f, unexplained %.3f, reach %.3f (noise and spacing %.3f), "
+        "stretch %.3f, "
+        "size %.3f -> confidence %.2f%s%s\n",
+        result.check.ambiguity, result.check.unexplained, result.check.reach,
+        result.check.reach_allowance, result.check.stretch, result.check.size,
+        result.check.confidence, result.check.concern.empty() ? "" : ": ",
         result.check.concern.c_str());
   }
   if (full && (!options.annotations_path.empty() || !options.cuts_path.empty())) {

@@ -119,6 +119,15 @@ TEST_F(DaemonConfigTest, ProfileOverridesOnlyTheOverridableKeysWithinTheirBounds
     EXPECT_THAT(e.what(), HasSubstr("crossed.yaml: morph.profile: with the template's values, "
                                     "check.stretch_start must be below check.stretch_end"));
   }
+  // One value given, crossing the template's other one.
+  const auto crossed_reach =
+      dir_.Write("crossed_reach.yaml", kHead + "morph: {profile: {check.reach_start: 0.07}}\n");
+  try {
+    (void)MorphOptionsFor(LoadDaemonConfig(crossed_reach), artifact);
+    ADD_FAILURE() << "crossed reach limits accepted";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("check.reach_start must be below check.reach_end"));
+  }
 }
 
 TEST_F(DaemonConfigTest, ReadsTheSawLinkAndJobNumberingKeys) {

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <limits>
+#include <string>
 
 #include "geometry/mesh_measures.h"
 #include "morph/morph_carcass.h"
@@ -87,7 +88,8 @@ TEST_F(MorphCheckTest, DistrustsATargetInOtherUnits) {
 
 // A part of the carcass the morph left uncovered (points beyond the body, as a limb the
 // template put elsewhere would leave) is read by how far it lies, once it holds more than 1 %
-// of the points; a smaller one leaves the reach as it was.
+// of the points, and nothing is sent; a smaller one leaves the reach and the confidence as
+// they were.
 TEST_F(MorphCheckTest, ReachReadsHowFarTheUncoveredPartLies) {
   const Eigen::Matrix3Xd cloud = test::HangingCloud(*carcass_, 2000003u, 0.003);
   const CarcassResult good = MorphUpright(cloud);
@@ -108,14 +110,62 @@ TEST_F(MorphCheckTest, ReachReadsHowFarTheUncoveredPartLies) {
     const MorphCheck check = CheckMorph(*model_, good.coarse, uncovered);
     if (extra > n / 100) {
       EXPECT_NEAR(check.reach, nearest / size, 1e-9);
+      EXPECT_EQ(check.confidence, 0.0);
+      EXPECT_NE(check.concern.find("farthest 1 % of the target"), std::string::npos)
+          << check.concern;
     } else {
       EXPECT_LT(check.reach, kGoodReach) << extra << " points";
+      EXPECT_GT(check.confidence, 0.9) << check.concern;
     }
     EXPECT_NEAR(check.unexplained,
                 (good.check.unexplained * static_cast<double>(n) + static_cast<double>(extra)) /
                     static_cast<double>(n + extra),
                 1e-12);
   }
+}
+
+// The reach counts from what the noise and the template's vertex spacing explain, and the
+// confidence falls linearly over [reach_start, reach_end] beyond that.
+TEST_F(MorphCheckTest, ReachCountsBeyondTheNoiseAndTheVertexSpacing) {
+  const Eigen::Matrix3Xd cloud = test::HangingCloud(*carcass_, 2000003u, 0.003);
+  const CarcassResult good = MorphUpright(cloud);
+  ASSERT_TRUE(good.ok) << good.error;
+  EXPECT_EQ(good.check.noise, good.dense.noise);
+  double edges = 0.0;
+  int count = 0;
+  for (Eigen::Index f = 0; f < model_->mesh.F.cols(); ++f) {
+    for (int e = 0; e < 3; ++e) {
+      const int a = model_->mesh.F(e, f), b = model_->mesh.F((e + 1) % 3, f);
+      if (a < b) {
+        edges += (model_->V.col(a) - model_->V.col(b)).norm();
+        ++count;
+      }
+    }
+  }
+  const MorphCheckOptions defaults;
+  EXPECT_NEAR(good.check.reach_allowance,
+              defaults.reach_noise * good.dense.noise + edges / count / std::sqrt(3.0), 1e-12);
+  // A right morph of a cloud with 3 mm noise reads within its allowance (measured 0.0049
+  // under it: the noise and the spacing add less than their sum).
+  EXPECT_LT(good.check.reach - good.check.reach_allowance, -0.0033);
+
+  // The reach beyond the allowance halfway along the ramp halves the confidence.
+  MorphCheckOptions off = defaults, halfway = defaults;
+  off.reach_start = 1.0;
+  off.reach_end = 2.0;
+  const double beyond = good.check.reach - good.check.reach_allowance;
+  halfway.reach_start = beyond - 0.01;
+  halfway.reach_end = beyond + 0.01;
+  const double without = CheckMorph(*model_, good.coarse, good.dense, off).confidence;
+  ASSERT_GT(without, 0.9);
+  EXPECT_NEAR(CheckMorph(*model_, good.coarse, good.dense, halfway).confidence, 0.5 * without,
+              1e-9);
+  // The same cloud read noisier: the allowance grows with the noise, and the ramp with it.
+  DenseResult noisier = good.dense;
+  noisier.noise += 0.01;
+  const MorphCheck read_noisier = CheckMorph(*model_, good.coarse, noisier, halfway);
+  EXPECT_NEAR(read_noisier.reach_allowance - good.check.reach_allowance,
+              defaults.reach_noise * 0.01, 1e-12);
 }
 
 // The ambiguity compares the chosen placement with the runner-up as both stood when the

@@ -272,6 +272,11 @@ if not (math.isfinite(check["size"]) and 0.5 < check["size"] < 2.0):
 # (measured 0.0069 of the template's size).
 if not 0 < check["reach"] < 0.010:
     sys.exit(f"FAIL: cuts JSON check.reach {check['reach']} is not that of a right morph")
+# What the noise and the vertex spacing explain of it: 2.6 noise levels and the template's
+# mean edge over sqrt(3); a right morph reads within it (measured 0.0037 under it).
+beyond = check["reach"] - check["reach_allowance"]
+if not (check["noise"] > 0 and beyond < -0.0024):
+    sys.exit(f"FAIL: cuts JSON check.reach {check['reach']} lies {beyond} beyond its allowance")
 PY
 /usr/bin/python3 - "$work/set/template.ply" "$work/template_mm.ply" <<'PY' || failures=$((failures + 1))
 import struct, sys
