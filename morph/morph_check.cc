@@ -93,12 +93,12 @@ MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
       (options.stretch_end - check.stretch) / (options.stretch_end - options.stretch_start), 0.0,
       1.0);
   // No reach (no target, or no size) is no sign that the morph covers the target.
+  const bool reach_read = std::isfinite(check.reach) && std::isfinite(check.reach_allowance);
   const double from_reach =
-      std::isfinite(check.reach)
-          ? std::clamp((options.reach_end - (check.reach - check.reach_allowance)) /
-                           (options.reach_end - options.reach_start),
-                       0.0, 1.0)
-          : 0.0;
+      reach_read ? std::clamp((options.reach_end - (check.reach - check.reach_allowance)) /
+                                  (options.reach_end - options.reach_start),
+                              0.0, 1.0)
+                 : 0.0;
   check.confidence = from_size * from_ambiguity * from_unexplained * from_stretch * from_reach;
   char why[300];
   const double worst =
@@ -113,12 +113,14 @@ MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
       std::snprintf(why, sizeof(why),
                     "placement ambiguous: a placement turned elsewhere fits %.0f %% as well",
                     100.0 * check.ambiguity);
+    else if (worst == from_reach && !reach_read)
+      std::snprintf(why, sizeof(why), "no target points to check the morph against");
     else if (worst == from_reach)
       std::snprintf(why, sizeof(why),
                     "the farthest 1 %% of the target lies %.1f %% of the template's size from the "
-                    "morph, %.1f %% more than the noise and the vertex spacing explain: a part put "
-                    "elsewhere, or something attached to the carcass (a gambrel in the region of "
-                    "interest?)",
+                    "morph, %.1f %% of the size beyond what the noise and the vertex spacing "
+                    "explain: a part put elsewhere, or something attached to the carcass (a "
+                    "gambrel in the region of interest?)",
                     100.0 * check.reach, 100.0 * (check.reach - check.reach_allowance));
     else if (worst == from_unexplained)
       std::snprintf(why, sizeof(why), "%.0f %% of the target is not covered by the morph",

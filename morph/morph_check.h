@@ -27,15 +27,15 @@ struct MorphCheck {
   /// vertices, in template sizes: how far the farthest part of the carcass the morph left
   /// uncovered lies (a limb the template put elsewhere, or something attached to the carcass
   /// such as a gambrel), when that part holds more than 1 % of the points. NaN when there is
-  /// no target or no size.
+  /// no target, no morphed vertex or no size.
   double reach = std::numeric_limits<double>::quiet_NaN();
-  /// The target's noise level the dense stage estimated (DenseResult::noise), in template
-  /// sizes: what unexplained and reach allow for.
+  /// The target's noise the dense stage estimated (DenseResult::noise: a standard deviation),
+  /// in template sizes: what unexplained and reach allow for. Not a sign.
   double noise = 0.0;
-  /// The reach a right morph shows from the noise and the template's vertex spacing alone,
-  /// template sizes: MorphCheckOptions::reach_noise noise levels plus the template's mean edge
-  /// length over sqrt(3) (the farthest a point of an equilateral triangle lies from its
-  /// nearest corner). The confidence reads reach less this.
+  /// The most reach a right morph shows from the noise and the template's vertex spacing
+  /// alone, template sizes: MorphCheckOptions::reach_noise noise levels plus the template's
+  /// mean edge length over sqrt(3) (the farthest a point of an equilateral triangle lies from
+  /// its nearest corner). The confidence reads reach less this. Not a sign.
   double reach_allowance = 0.0;
   /// 90th percentile of |log(edge length morphed / edge length rest)| after the global
   /// scale: how far the morph had to stretch the template to fit.
@@ -44,8 +44,9 @@ struct MorphCheck {
   /// from their centroid, morphed over rest (target units over template units). Far from 1
   /// the target is in other units (millimetres read as metres) or another kind of body.
   double size = 1.0;
-  /// In [0, 1]: 1 unless one of the signs above passes its limit, then falling to 0. The
-  /// pipeline multiplies every transferred cut's own confidence by it.
+  /// In [0, 1]: 1 unless one of the signs above passes its limit, then falling to 0; 0 when
+  /// the reach or its allowance cannot be read. The pipeline multiplies every transferred
+  /// cut's own confidence by it.
   double confidence = 1.0;
   /// Which sign lowered the confidence most, for an operator ("" when none did).
   std::string concern;
@@ -70,10 +71,9 @@ struct MorphCheckOptions {
   /// Gaussian noise from their surface is 2.58 standard deviations.
   double reach_noise = 2.6;
   /// Confidence falls linearly from 1 at reach_start to 0 at reach_end, reach less
-  /// MorphCheck::reach_allowance, template sizes: from about 3 times the most a right lamb
-  /// morph shows on the line's poses (0.010, clouds at 16 mm) to where a limb put elsewhere
-  /// on the shape benchmark begins (docs/decisions.md, "The check counts the cloud's farthest
-  /// points").
+  /// MorphCheck::reach_allowance, template sizes: from well above the most a right lamb
+  /// morph shows on the line's poses (0.005) to where limbs put elsewhere on the shape
+  /// benchmark lie (docs/decisions.md, "The check counts the cloud's farthest points").
   double reach_start = 0.03;
   double reach_end = 0.06;
   /// Confidence falls linearly from 1 at stretch_start to 0 at stretch_end: from 1.2 times

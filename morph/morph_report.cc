@@ -126,8 +126,9 @@ void WriteCutsReport(const std::filesystem::path& path, const io::Annotations& a
   j["template"] = annotations.template_name;
   // Lengths are in metres (the target as the morph read it: a rig cloud, or a scan read with
   // `vbutcher morph --target-units`), volumes and areas their cube and square; the rest are
-  // fractions.
-  j["units"] = {{"length", "m"}, {"volume", "m3"}, {"area", "m2"}};
+  // fractions, but for the check's lengths (reach, reach_allowance, noise): template sizes.
+  j["units"] = {
+      {"length", "m"}, {"volume", "m3"}, {"area", "m2"}, {"check_length", "template sizes"}};
   nlohmann::json out_cuts = nlohmann::json::array();
   for (const TransferredCut& c : cuts) {
     nlohmann::json line = nlohmann::json::array();

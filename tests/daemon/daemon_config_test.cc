@@ -108,6 +108,9 @@ TEST_F(DaemonConfigTest, ProfileOverridesOnlyTheOverridableKeysWithinTheirBounds
               HasSubstr("morph.profile.dense.rounds: 0 is outside [1, 50] (rounds)"));
   EXPECT_THAT(Error("morph: {profile: [dense.rounds]}\n"),
               HasSubstr("morph.profile: expected a mapping"));
+  // The ambiguity's ramp ends at 1: a start there would leave it no length.
+  EXPECT_THAT(Error("morph: {profile: {check.ambiguity_start: 1.0}}\n"),
+              HasSubstr("morph.profile.check.ambiguity_start: 1 is outside [0, 0.999]"));
   // Each value in bounds, but together with the template's not: named at start.
   const auto crossed = dir_.Write(
       "crossed.yaml", kHead + "morph: {profile: {check.stretch_start: 0.5, check.stretch_end: 0.4}}\n");
