@@ -56,6 +56,21 @@ NormalReach WiderNormalReach(const geometry::TriangleMesh& posed, const Eigen::M
   return wider;
 }
 
+// Each of @p estimated's normals blended with the normal @p posed_normals holds at its
+// point's nearest vertex (@p nearest): (1 - weight) n + weight t, n first turned to t's side,
+// then made unit; a blend of no length keeps n. Into @p normals (the same size).
+void BlendNormals(const Eigen::Matrix3Xd& estimated, const Eigen::Matrix3Xd& posed_normals,
+                  const std::vector<int>& nearest, double weight, Eigen::Matrix3Xd* normals) {
+  for (Eigen::Index j = 0; j < estimated.cols(); ++j) {
+    const Eigen::Vector3d t = posed_normals.col(nearest[static_cast<std::size_t>(j)]);
+    Eigen::Vector3d n = estimated.col(j);
+    if (n.dot(t) < 0.0) n = -n;
+    const Eigen::Vector3d blend = (1.0 - weight) * n + weight * t;
+    const double length = blend.norm();
+    normals->col(j) = length > 1e-12 ? Eigen::Vector3d(blend / length) : n;
+  }
+}
+
 }  // namespace
 
 DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
@@ -121,7 +136,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   // below do.
   phase = std::chrono::steady_clock::now();
   // Each point's nearest vertex of the posed template: its normal signs the point's.
-  const std::vector<int> nearest_posed = NearestEach(PointIndex(posed.V), points, pool);
+  std::vector<int> nearest_posed = NearestEach(PointIndex(posed.V), points, pool);
   Eigen::Matrix3Xd normals;
   if (target_normals.cols() == 0) {
     result.normal_passes = NormalPassesForNoise(relative_surface_noise, options.max_normal_passes);
@@ -153,12 +168,25 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
       result.turned_normals = true;
     }
   }
+  // What each target point's plane faces: its own normal, or with the prior
+  // (DenseOptions::normal_prior) an estimated normal leaning on the posed template's as far as
+  // the noise asks, blended again each round from the same estimate. Eq. (11) pairs on the
+  // target's own normals, so a stray point whose normal disagrees with the template's is
+  // still dropped there.
+  Eigen::Matrix3Xd leaning;  // the blended normals; none without the prior
+  if (target_normals.cols() == 0 && options.normal_prior) {
+    const double r = noise / options.noise_reference;
+    result.normal_prior = r * r / (1.0 + r * r);
+    leaning.resize(3, normals.cols());
+    BlendNormals(normals, posed.N, nearest_posed, result.normal_prior, &leaning);
+  }
+  const Eigen::Matrix3Xd& plane_normals = leaning.cols() > 0 ? leaning : normals;
   result.normals_seconds = Since(phase);
 
   result.surface_neighbours = NeighboursForNoise(
       options.surface_neighbours, options.max_surface_neighbours, relative_surface_noise);
   const Eigen::Matrix3Xd centroids =
-      PlanePoints(points, normals, *index, result.surface_neighbours, options.surface_radius,
+      PlanePoints(points, plane_normals, *index, result.surface_neighbours, options.surface_radius,
                   options.correct_plane_offset, pool);
   const double relative_noise = noise / options.noise_reference;
   const double noise_factor = 1.0 / (1.0 + relative_noise * relative_noise);
@@ -180,9 +208,10 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   const auto plane_constraint = [&](int i, int j, DenseRound* info) {
     Eigen::Vector3d plane_point = centroids.col(j);
     if (options.unbias_plane_points)
-      plane_point += CurvatureOffset(curvature[i], noise) * normals.col(j);
-    info->mean_plane_distance += std::abs(normals.col(j).dot(posed.V.col(i) - plane_point));
-    return ConstrainPoint(model.vertex_weights, i, model.V.col(i), plane_point, normals.col(j));
+      plane_point += CurvatureOffset(curvature[i], noise) * plane_normals.col(j);
+    info->mean_plane_distance += std::abs(plane_normals.col(j).dot(posed.V.col(i) - plane_point));
+    return ConstrainPoint(model.vertex_weights, i, model.V.col(i), plane_point,
+                          plane_normals.col(j));
   };
   // Whether template vertex i lies too far along target point j's plane for the plane to
   // say where it belongs (max_tangent_reach).
@@ -194,7 +223,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
                                         : std::numeric_limits<double>::infinity();
   const auto beyond_reach = [&](int i, int j) {
     const Eigen::Vector3d offset = posed.V.col(i) - points.col(j);
-    const Eigen::Vector3d n = normals.col(j);
+    const Eigen::Vector3d n = plane_normals.col(j);
     return (offset - n.dot(offset) * n).squaredNorm() > max_tangent_offset * max_tangent_offset;
   };
   // Eq. (12) on pairs (template vertex, target point): which of them to keep.
@@ -239,6 +268,11 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   DeformationScratch scratch;  // one for every round's solve
   for (int round = 0; round < options.rounds; ++round) {
     if (options.unbias_plane_points) curvature = geometry::CurvatureSums(posed, posed.N);
+    const PointIndex posed_index(posed.V);
+    if (round > 0 && leaning.cols() > 0) {
+      nearest_posed = NearestEach(posed_index, points, pool);
+      BlendNormals(normals, posed.N, nearest_posed, result.normal_prior, &leaning);
+    }
     DenseRound info;
     // The two ways are independent until the constraints are made: one per thread. Times
     // are summed over both.
@@ -254,7 +288,6 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
         begin = std::chrono::steady_clock::now();
         kept = filter(pairs.source, pairs.target);
       } else {
-        const PointIndex posed_index(posed.V);
         back = AssociateDense(points, normals, reverse_samples, posed.V, posed.N, posed_index,
                               options.association);
         seconds[1][0] = Since(begin);
@@ -321,7 +354,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   for (Eigen::Index i = 0; i < posed.V.cols(); ++i)
     result.mesh.V.col(i) = to_target(posed.V.col(i));
   result.mesh.N = geometry::VertexNormals(result.mesh);
-  result.target_normals = to_target.R * normals;
+  result.target_normals = to_target.R * plane_normals;
   result.target = target(Eigen::all, Eigen::seq(0, Eigen::last, result.stride));
   result.ok = true;
   result.total_seconds = Since(start);

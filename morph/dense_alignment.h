@@ -41,6 +41,16 @@ struct DenseOptions {
   double normal_reach = 4.0;
   double normal_curvature_reach = 0.5;
   int max_normal_neighbours = 500;
+  /// Estimated normals lean on the posed template's: the planes of eq. (14) and the plane
+  /// points face each estimated normal blended with the normal of the posed template's nearest
+  /// vertex, weighing r^2 / (1 + r^2) against the estimate's 1 / (1 + r^2), r = noise /
+  /// noise_reference (the data weight's split, below), blended again each round from the same
+  /// estimate as the template moves (DenseResult::normal_prior). A cloud's own principal axes
+  /// turn with its noise, most where a thin part curves within their reach; the template's
+  /// normal is as good as its pose. Eq. (11) still pairs on the estimates, so that a stray
+  /// point whose normal disagrees with the template's is dropped there. A target's own normals
+  /// are used as given.
+  bool normal_prior = true;
   /// Each associated target point is replaced by a plane point (PlanePoints): the centroid
   /// of this many nearest target points, which averages sensor noise along the normal. Few,
   /// so curved limbs are not flattened. This is the count for targets no noisier than
@@ -144,7 +154,9 @@ struct DenseResult {
   /// The target points the stage used, target frame: every stride-th (see thin_to_noise),
   /// so that what comes after (check, cut transfer) reads the cloud the way the stage did.
   Eigen::Matrix3Xd target;
-  Eigen::Matrix3Xd target_normals;  ///< unit, of those points; given or estimated
+  /// Unit, of those points: given, or estimated and leaning on the template's
+  /// (DenseOptions::normal_prior): the normals the planes of eq. (14) face.
+  Eigen::Matrix3Xd target_normals;
   std::vector<DenseRound> rounds;
   double noise = 0.0;    ///< estimated sensor noise (standard deviation), template sizes
   double noise_m = 0.0;  ///< the same in the target's units (metres): noise x the morph's scale
@@ -154,6 +166,9 @@ struct DenseResult {
   int surface_neighbours = 0;  ///< target points averaged per plane point, from the noise
   int normal_passes = 0;       ///< EstimateNormals' passes, from the noise (0: own normals)
   int widened_normals = 0;     ///< normals given a radius of their own (one pass, RefitNormals)
+  /// Weight of the posed template's normal in each estimated normal (DenseOptions::
+  /// normal_prior); 0 when the target's own normals were used or the prior is off.
+  double normal_prior = 0.0;
   /// The target's own normals were turned: most pointed against the posed template's.
   bool turned_normals = false;
   int stride = 1;              ///< every stride-th target point was used (thin_to_noise)
