@@ -135,7 +135,8 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   // Estimated normals average over more points as the noise grows, as the plane points
   // below do.
   phase = std::chrono::steady_clock::now();
-  // Each point's nearest vertex of the posed template: its normal signs the point's.
+  // Each point's nearest vertex of the posed template: its normal signs the point's (and, with
+  // the normal prior, is what the point's plane leans on; found again each round).
   std::vector<int> nearest_posed = NearestEach(PointIndex(posed.V), points, pool);
   Eigen::Matrix3Xd normals;
   if (target_normals.cols() == 0) {
@@ -168,17 +169,17 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
       result.turned_normals = true;
     }
   }
-  // What each target point's plane faces: its own normal, or with the prior
-  // (DenseOptions::normal_prior) an estimated normal leaning on the posed template's as far as
-  // the noise asks, blended again each round from the same estimate. Eq. (11) pairs on the
-  // target's own normals, so a stray point whose normal disagrees with the template's is
-  // still dropped there.
+  // What each target point's plane faces: its normal as given or estimated, or with the prior
+  // (DenseOptions::normal_prior) the estimate leaning on the posed template's as far as the
+  // noise asks, blended again each round from the same estimate. Eq. (11) pairs on the
+  // estimates, so a stray point whose normal disagrees with the template's is dropped there.
+  const double relative_noise = noise / options.noise_reference;
   Eigen::Matrix3Xd leaning;  // the blended normals; none without the prior
-  if (target_normals.cols() == 0 && options.normal_prior) {
-    const double r = noise / options.noise_reference;
-    result.normal_prior = r * r / (1.0 + r * r);
+  if (target_normals.cols() == 0 && options.normal_prior && relative_noise > 0.0) {
+    result.normal_prior_weight =
+        relative_noise * relative_noise / (1.0 + relative_noise * relative_noise);
     leaning.resize(3, normals.cols());
-    BlendNormals(normals, posed.N, nearest_posed, result.normal_prior, &leaning);
+    BlendNormals(normals, posed.N, nearest_posed, result.normal_prior_weight, &leaning);
   }
   const Eigen::Matrix3Xd& plane_normals = leaning.cols() > 0 ? leaning : normals;
   result.normals_seconds = Since(phase);
@@ -188,7 +189,6 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   const Eigen::Matrix3Xd centroids =
       PlanePoints(points, plane_normals, *index, result.surface_neighbours, options.surface_radius,
                   options.correct_plane_offset, pool);
-  const double relative_noise = noise / options.noise_reference;
   const double noise_factor = 1.0 / (1.0 + relative_noise * relative_noise);
   result.state = coarse.state;
   // The posture the coarse stage found, where it bent the graph sharply, is what E_reg holds.
@@ -271,7 +271,7 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     const PointIndex posed_index(posed.V);
     if (round > 0 && leaning.cols() > 0) {
       nearest_posed = NearestEach(posed_index, points, pool);
-      BlendNormals(normals, posed.N, nearest_posed, result.normal_prior, &leaning);
+      BlendNormals(normals, posed.N, nearest_posed, result.normal_prior_weight, &leaning);
     }
     DenseRound info;
     // The two ways are independent until the constraints are made: one per thread. Times

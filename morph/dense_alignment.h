@@ -41,16 +41,15 @@ struct DenseOptions {
   double normal_reach = 4.0;
   double normal_curvature_reach = 0.5;
   int max_normal_neighbours = 500;
-  /// Estimated normals lean on the posed template's: the planes of eq. (14) and the plane
-  /// points face each estimated normal blended with the normal of the posed template's nearest
-  /// vertex, weighing r^2 / (1 + r^2) against the estimate's 1 / (1 + r^2), r = noise /
-  /// noise_reference (the data weight's split, below), blended again each round from the same
-  /// estimate as the template moves (DenseResult::normal_prior). A cloud's own principal axes
-  /// turn with its noise, most where a thin part curves within their reach; the template's
-  /// normal is as good as its pose. Eq. (11) still pairs on the estimates, so that a stray
-  /// point whose normal disagrees with the template's is dropped there. A target's own normals
-  /// are used as given.
-  bool normal_prior = true;
+  /// Whether estimated normals lean on the posed template's: the planes of eq. (14) and the
+  /// tangent reach above face (1 - w) n + w t, n the estimate, t the normal of the posed
+  /// template's nearest vertex as the previous round left it, w = r^2 / (1 + r^2), r = noise /
+  /// noise_reference (DenseResult::normal_prior_weight); the plane points are corrected along
+  /// the first round's blend. Eq. (11) pairs on the estimates. Given normals are used as given.
+  /// Off by default: it brings noisy morphs nearer, but a part put elsewhere then covers the
+  /// cloud, and the whole-morph check, which reads the cloud's coverage, passes it
+  /// (decisions.md, "Tried: noisy normals that lean on the template's").
+  bool normal_prior = false;
   /// Each associated target point is replaced by a plane point (PlanePoints): the centroid
   /// of this many nearest target points, which averages sensor noise along the normal. Few,
   /// so curved limbs are not flattened. This is the count for targets no noisier than
@@ -154,8 +153,8 @@ struct DenseResult {
   /// The target points the stage used, target frame: every stride-th (see thin_to_noise),
   /// so that what comes after (check, cut transfer) reads the cloud the way the stage did.
   Eigen::Matrix3Xd target;
-  /// Unit, of those points: given, or estimated and leaning on the template's
-  /// (DenseOptions::normal_prior): the normals the planes of eq. (14) face.
+  /// Unit, of those points: given, or estimated and blended as the last round's planes faced
+  /// (DenseOptions::normal_prior).
   Eigen::Matrix3Xd target_normals;
   std::vector<DenseRound> rounds;
   double noise = 0.0;    ///< estimated sensor noise (standard deviation), template sizes
@@ -166,9 +165,9 @@ struct DenseResult {
   int surface_neighbours = 0;  ///< target points averaged per plane point, from the noise
   int normal_passes = 0;       ///< EstimateNormals' passes, from the noise (0: own normals)
   int widened_normals = 0;     ///< normals given a radius of their own (one pass, RefitNormals)
-  /// Weight of the posed template's normal in each estimated normal (DenseOptions::
-  /// normal_prior); 0 when the target's own normals were used or the prior is off.
-  double normal_prior = 0.0;
+  /// Weight w in [0, 1) of the posed template's normal in each plane's (DenseOptions::
+  /// normal_prior), unitless; 0 when the target's normals were given or the prior is off.
+  double normal_prior_weight = 0.0;
   /// The target's own normals were turned: most pointed against the posed template's.
   bool turned_normals = false;
   int stride = 1;              ///< every stride-th target point was used (thin_to_noise)

@@ -107,7 +107,7 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
                   {"normal_passes", dense->normal_passes},
                   {"widened_normals", dense->widened_normals},
                   {"turned_normals", dense->turned_normals},
-                  {"normal_prior", dense->normal_prior},
+                  {"normal_prior_weight", dense->normal_prior_weight},
                   {"target_stride", dense->stride},
                   {"normals_s", dense->normals_seconds},
                   {"noise_s", dense->noise_seconds},

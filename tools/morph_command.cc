@@ -316,11 +316,11 @@ int RunMorphCommand(const MorphCommandOptions& options) {
                                    : std::string());
     std::printf(
         "morph: dense: noise %.1f mm (%.3g of the size; %s; %.0f points per m2), normals %.3f s "
-        "(%d widened%s; %.2f the template's), %zu rounds, total %.3f s\n",
+        "(%d widened%s), %zu rounds, total %.3f s\n",
         1000 * dense.noise_m, dense.noise, used.c_str(), dense.density_m2, dense.normals_seconds,
         dense.widened_normals,
         dense.turned_normals ? "; most of the target's own pointed inward: all turned" : "",
-        dense.normal_prior, dense.rounds.size(), dense.total_seconds);
+        dense.rounds.size(), dense.total_seconds);
   }
   if (full) {
     // How the morph sits on the scan, with no ground truth: every scan point's distance to the

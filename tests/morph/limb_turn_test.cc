@@ -191,15 +191,15 @@ TEST_F(RaisedArmTest, TheDenseStageKeepsTheTurnedArmOnANoisyCloud) {
   std::normal_distribution<double> noise(0.0, 0.01);
   Eigen::Matrix3Xd cloud = raised.V;
   for (Eigen::Index i = 0; i < cloud.cols(); ++i) cloud.col(i) += noise(random) * raised.N.col(i);
-  // The bends alone, with the planes facing the cloud's own normals; then the default, whose
-  // noisy normals lean on the template's.
-  DenseOptions kept_bends;
-  kept_bends.normal_prior = false;
-  DenseOptions rest_shape = kept_bends;
+  // The bends alone (the defaults); then with the noisy normals leaning on the template's
+  // (DenseOptions::normal_prior, off by default).
+  DenseOptions rest_shape;
   rest_shape.free_bend = 100.0;  // past every bend: none kept
-  const DenseResult kept = AlignDense(*model_, coarse, cloud, Eigen::Matrix3Xd(), kept_bends);
+  DenseOptions prior;
+  prior.normal_prior = true;
+  const DenseResult kept = AlignDense(*model_, coarse, cloud, Eigen::Matrix3Xd());
   const DenseResult relaxed = AlignDense(*model_, coarse, cloud, Eigen::Matrix3Xd(), rest_shape);
-  const DenseResult leaning = AlignDense(*model_, coarse, cloud, Eigen::Matrix3Xd());
+  const DenseResult leaning = AlignDense(*model_, coarse, cloud, Eigen::Matrix3Xd(), prior);
   ASSERT_TRUE(kept.ok) << kept.error;
   ASSERT_TRUE(relaxed.ok) << relaxed.error;
   ASSERT_TRUE(leaning.ok) << leaning.error;
