@@ -6,6 +6,7 @@
 #include <limits>
 #include <memory>
 #include <numbers>
+#include <optional>
 
 #include "geometry/mesh_measures.h"
 #include "morph/cloud_noise.h"
@@ -268,10 +269,15 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   DeformationScratch scratch;  // one for every round's solve
   for (int round = 0; round < options.rounds; ++round) {
     if (options.unbias_plane_points) curvature = geometry::CurvatureSums(posed, posed.N);
-    const PointIndex posed_index(posed.V);
-    if (round > 0 && leaning.cols() > 0) {
-      nearest_posed = NearestEach(posed_index, points, pool);
-      BlendNormals(normals, posed.N, nearest_posed, result.normal_prior_weight, &leaning);
+    // With the normal prior, the posed template's kd-tree serves the blend and the reverse
+    // association; without, the reverse association builds it on its own thread.
+    std::optional<PointIndex> posed_tree;
+    if (leaning.cols() > 0) {
+      posed_tree.emplace(posed.V);
+      if (round > 0) {
+        nearest_posed = NearestEach(*posed_tree, points, pool);
+        BlendNormals(normals, posed.N, nearest_posed, result.normal_prior_weight, &leaning);
+      }
     }
     DenseRound info;
     // The two ways are independent until the constraints are made: one per thread. Times
@@ -288,6 +294,8 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
         begin = std::chrono::steady_clock::now();
         kept = filter(pairs.source, pairs.target);
       } else {
+        std::optional<PointIndex> own_tree;
+        const PointIndex& posed_index = posed_tree ? *posed_tree : own_tree.emplace(posed.V);
         back = AssociateDense(points, normals, reverse_samples, posed.V, posed.N, posed_index,
                               options.association);
         seconds[1][0] = Since(begin);
