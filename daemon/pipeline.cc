@@ -2,13 +2,13 @@
 
 #include <algorithm>
 #include <array>
-#include <ctime>
-#include <span>
-#include <cstring>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <span>
 
 #include "daemon/job.h"
 #include "daemon/log.h"
@@ -17,6 +17,7 @@
 #include "io/saw_protocol.h"
 #include "io/version.h"
 #include "morph/morph_carcass.h"
+#include "morph/morph_check.h"
 
 namespace vb::daemon {
 namespace {
@@ -655,15 +656,12 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
           numbers, sizeof numbers,
           "morph %.3f s (clean %.3f, coarse %.3f, dense %.3f, cuts %.3f), send %.3f s, answer "
           "%.3f s, "
-          "latency %.3f s; noise %.1f mm; morph check %.2f (ambiguity %.2f, unexplained %.2f, "
-          "reach %.3f (noise and spacing %.3f), stretch %.2f, size %.2f)",
+          "latency %.3f s; noise %.1f mm; morph check ",
           result.seconds, result.cleaning.seconds, result.coarse.total_seconds,
           result.dense.total_seconds, result.cuts_seconds, outcome.send_s, outcome.answer_s,
-          report.latency_s, 1000 * result.dense.noise_m, result.check.confidence,
-          result.check.ambiguity, result.check.unexplained, result.check.reach,
-          result.check.reach_allowance, result.check.stretch, result.check.size);
+          report.latency_s, 1000 * result.dense.noise_m);
       text += numbers;
-      if (!result.check.concern.empty()) text += ": " + result.check.concern;
+      text += morph::DescribeCheck(result.check);
       if (result.cleaning.stride > 1) {
         std::snprintf(numbers, sizeof numbers, "; cloud read at one point in %d",
                       result.cleaning.stride);

@@ -59,13 +59,19 @@ NormalReach WiderNormalReach(const geometry::TriangleMesh& posed, const Eigen::M
 
 // Each of @p estimated's normals blended with the normal @p posed_normals holds at its
 // point's nearest vertex (@p nearest): (1 - weight) n + weight t, n first turned to t's side,
-// then made unit; a blend of no length keeps n. Into @p normals (the same size).
+// then made unit; a blend of no length keeps n. An estimate whose cosine to t (after the
+// turn) is below @p min_cosine is kept as it is, unturned. Into @p normals (the same size).
 void BlendNormals(const Eigen::Matrix3Xd& estimated, const Eigen::Matrix3Xd& posed_normals,
-                  const std::vector<int>& nearest, double weight, Eigen::Matrix3Xd* normals) {
+                  const std::vector<int>& nearest, double weight, double min_cosine,
+                  Eigen::Matrix3Xd* normals) {
   for (Eigen::Index j = 0; j < estimated.cols(); ++j) {
     const Eigen::Vector3d t = posed_normals.col(nearest[static_cast<std::size_t>(j)]);
     Eigen::Vector3d n = estimated.col(j);
     if (n.dot(t) < 0.0) n = -n;
+    if (n.dot(t) < min_cosine) {
+      normals->col(j) = estimated.col(j);
+      continue;
+    }
     const Eigen::Vector3d blend = (1.0 - weight) * n + weight * t;
     const double length = blend.norm();
     normals->col(j) = length > 1e-12 ? Eigen::Vector3d(blend / length) : n;
@@ -180,7 +186,8 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
     result.normal_prior_weight =
         relative_noise * relative_noise / (1.0 + relative_noise * relative_noise);
     leaning.resize(3, normals.cols());
-    BlendNormals(normals, posed.N, nearest_posed, result.normal_prior_weight, &leaning);
+    BlendNormals(normals, posed.N, nearest_posed, result.normal_prior_weight,
+                 options.normal_prior_min_cosine, &leaning);
   }
   const Eigen::Matrix3Xd& plane_normals = leaning.cols() > 0 ? leaning : normals;
   result.normals_seconds = Since(phase);
@@ -276,7 +283,8 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
       posed_tree.emplace(posed.V);
       if (round > 0) {
         nearest_posed = NearestEach(*posed_tree, points, pool);
-        BlendNormals(normals, posed.N, nearest_posed, result.normal_prior_weight, &leaning);
+        BlendNormals(normals, posed.N, nearest_posed, result.normal_prior_weight,
+                     options.normal_prior_min_cosine, &leaning);
       }
     }
     DenseRound info;

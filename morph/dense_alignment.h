@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <numbers>
 #include <string>
 #include <vector>
 
@@ -46,10 +47,15 @@ struct DenseOptions {
   /// template's nearest vertex as the previous round left it, w = r^2 / (1 + r^2), r = noise /
   /// noise_reference (DenseResult::normal_prior_weight); the plane points are corrected along
   /// the first round's blend. Eq. (11) pairs on the estimates. Given normals are used as given.
-  /// Off by default: it brings noisy morphs nearer, but a part put elsewhere then covers the
-  /// cloud, and the whole-morph check, which reads the cloud's coverage, passes it
-  /// (decisions.md, "Tried: noisy normals that lean on the template's").
-  bool normal_prior = false;
+  /// An estimate whose cosine to t is below normal_prior_min_cosine is used as estimated:
+  /// turned more than 45 degrees (1/sqrt(2)), the normal lies more along the template's
+  /// surface than across it, so the template is not on that surface, and its planes must not
+  /// draw it over the points there (the whole-morph check, which reads the cloud's coverage,
+  /// would then pass a part put elsewhere; decisions.md, "Noisy normals lean on the
+  /// template's where they roughly agree"). A cosine; 0 lets every estimate lean, above 1 none
+  /// (the morph is then the one without the prior).
+  bool normal_prior = true;
+  double normal_prior_min_cosine = std::numbers::sqrt2 / 2.0;
   /// Each associated target point is replaced by a plane point (PlanePoints): the centroid
   /// of this many nearest target points, which averages sensor noise along the normal. Few,
   /// so curved limbs are not flattened. This is the count for targets no noisier than

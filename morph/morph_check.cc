@@ -133,4 +133,14 @@ MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
   return check;
 }
 
+std::string DescribeCheck(const MorphCheck& check) {
+  char line[200];
+  std::snprintf(line, sizeof(line),
+                "%.2f (ambiguity %.3f, unexplained %.3f, reach %.3f (noise and spacing %.3f), "
+                "stretch %.3f, size %.3f)",
+                check.confidence, check.ambiguity, check.unexplained, check.reach,
+                check.reach_allowance, check.stretch, check.size);
+  return check.concern.empty() ? std::string(line) : std::string(line) + ": " + check.concern;
+}
+
 }  // namespace vb::morph

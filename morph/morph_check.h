@@ -95,4 +95,9 @@ MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
                       const DenseResult& dense, const MorphCheckOptions& options = {},
                       std::span<const int> nearest_vertex = {});
 
+/// One line for a person (the daemon's job line, `vbutcher morph`): the confidence, then each
+/// sign, then the concern when there is one, e.g. "0.93 (ambiguity 0.120, unexplained
+/// 0.012, reach 0.021 (noise and spacing 0.018), stretch 0.110, size 1.004)".
+std::string DescribeCheck(const MorphCheck& check);
+
 }  // namespace vb::morph

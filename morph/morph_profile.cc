@@ -9,7 +9,7 @@
 namespace vb::morph {
 namespace {
 
-// A key for the MorphOptions member at @p path (ints and doubles).
+// A key for the MorphOptions member at @p path (ints, doubles, and bools as 0 or 1).
 #define VB_PROFILE_KEY(path, unit, lo, hi, overridable, what)                                \
   ProfileKey {                                                                               \
     #path, unit, lo, hi, std::is_integral_v<decltype(MorphOptions{}.path)>, overridable,     \
@@ -95,6 +95,8 @@ const std::array kKeys = {
     VB_PROFILE_KEY(dense.noise_radius, kSize, 0.001, 0.3, false, "reach of a noise reading"),
     VB_PROFILE_KEY(dense.noise_reference, kNoise, 1e-5, 0.1, false, "noise at which the data weight halves"),
     VB_PROFILE_KEY(dense.max_tangent_reach, "plane radii", 0.0, 100.0, false, "template pairs farther along the target's plane dropped (0: off)"),
+    VB_PROFILE_KEY(dense.normal_prior, "0 or 1", 0, 1, false, "estimated normals lean on the posed template's, as far as the noise asks"),
+    VB_PROFILE_KEY(dense.normal_prior_min_cosine, "cosine", 0.0, 1.0, false, "estimates turned further from the template's keep their own"),
     VB_PROFILE_KEY(dense.association.candidates, kCount, 1, 200, false, "eq. 11: target points searched"),
     VB_PROFILE_KEY(dense.association.lambda, "weight / size", 0.0, 1e4, false, "eq. 11: lambda"),
     VB_PROFILE_KEY(dense.association.max_distance, kSize, 0.0, 1.0, false, "eq. 11: longer pairs dropped"),

@@ -5,13 +5,14 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <numbers>
 #include <sstream>
 
-#include "io/error.h"
-#include "io/mesh_io.h"
 #include "geometry/mesh_measures.h"
 #include "geometry/surface_point.h"
+#include "io/error.h"
+#include "io/mesh_io.h"
 #include "morph/coarse_alignment.h"
 #include "morph/cut_transfer.h"
 #include "morph/dense_alignment.h"
@@ -34,8 +35,10 @@ struct FullRow {
   int index = 0;
   bool ok = false;
   std::string error;
-  double coarse_max_rel = 0, coarse_mean_rel = 0;  // of the target's bounding-box diagonal
-  double max_rel = 0, mean_rel = 0, max_mm = 0, mean_mm = 0;
+  // NaN on a failed morph's row (written as nan).
+  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  double coarse_max_rel = kNaN, coarse_mean_rel = kNaN;  // of the target's bounding-box diagonal
+  double max_rel = kNaN, mean_rel = kNaN, max_mm = kNaN, mean_mm = kNaN;
   std::vector<double> volume_rel_error, area_rel_error;                // per part
   std::vector<double> cut_angle_deg, cut_distance_mm, cut_confidence;  // per cut
   std::vector<double> cut_slide_error_mm;  // per cut: the placement's own standard deviation
@@ -47,9 +50,9 @@ struct FullRow {
   std::vector<double> cut_start_mm;
   double coarse_s = 0, normals_s = 0, dense_s = 0, cuts_s = 0, total_s = 0;
   // How well the morph fits, as the pipeline sees it (no ground truth): last dense round.
-  double kept_fraction = 0, plane_distance_rel = 0, final_cost = 0;
-  double ambiguity = 0, unexplained = 0, reach = 0, noise = 0, reach_allowance = 0,
-         stretch = 0;  // morph::MorphCheck
+  double kept_fraction = kNaN, plane_distance_rel = kNaN, final_cost = kNaN;
+  double ambiguity = kNaN, unexplained = kNaN, reach = kNaN, noise = kNaN, reach_allowance = kNaN,
+         stretch = kNaN;  // morph::MorphCheck
 };
 
 double Since(std::chrono::steady_clock::time_point start) {
@@ -455,14 +458,14 @@ int RunFullBench(const BenchOptions& options) {
       if (r.ok)
         csv << ',' << r.volume_rel_error[k] << ',' << r.area_rel_error[k];
       else
-        csv << ",,";
+        csv << ",nan,nan";
     }
     for (std::size_t c = 0; c < carcass.annotations.cuts.size(); ++c) {
       if (r.ok)
         csv << ',' << r.cut_angle_deg[c] << ',' << r.cut_distance_mm[c] << ',' << r.cut_floor_mm[c]
             << ',' << r.cut_confidence[c] << ',' << r.cut_slide_error_mm[c];
       else
-        csv << ",,,,,";
+        csv << ",nan,nan,nan,nan,nan";
     }
     csv << ',' << r.kept_fraction << ',' << r.plane_distance_rel << ',' << r.final_cost << ','
         << r.ambiguity << ',' << r.unexplained << ',' << r.reach << ',' << r.noise << ','

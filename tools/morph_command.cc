@@ -25,6 +25,7 @@
 #include "morph/cut_transfer.h"
 #include "morph/dense_alignment.h"
 #include "morph/morph_carcass.h"
+#include "morph/morph_check.h"
 #include "morph/morph_report.h"
 #include "morph/surface_distance.h"
 #include "morph/template_artifact.h"
@@ -349,14 +350,7 @@ int RunMorphCommand(const MorphCommandOptions& options) {
         placed.scale, turn.angle() * 180.0 / std::numbers::pi, turn.axis().x(), turn.axis().y(),
         turn.axis().z(), up.x(), up.y(), up.z(), dense.mesh.V.rowwise().mean().x(),
         dense.mesh.V.rowwise().mean().y(), dense.mesh.V.rowwise().mean().z());
-    std::printf(
-        "morph: check: ambiguity %.3f, unexplained %.3f, reach %.3f (noise and spacing %.3f), "
-        "stretch %.3f, "
-        "size %.3f -> confidence %.2f%s%s\n",
-        result.check.ambiguity, result.check.unexplained, result.check.reach,
-        result.check.reach_allowance, result.check.stretch, result.check.size,
-        result.check.confidence, result.check.concern.empty() ? "" : ": ",
-        result.check.concern.c_str());
+    std::printf("morph: check: confidence %s\n", morph::DescribeCheck(result.check).c_str());
   }
   if (full && (!options.annotations_path.empty() || !options.cuts_path.empty())) {
     const std::vector<morph::TransferredCut>& cuts = result.cuts;

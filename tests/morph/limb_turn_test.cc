@@ -4,6 +4,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cstdio>
 #include <memory>
 #include <numbers>
 #include <random>
@@ -191,27 +192,29 @@ TEST_F(RaisedArmTest, TheDenseStageKeepsTheTurnedArmOnANoisyCloud) {
   std::normal_distribution<double> noise(0.0, 0.01);
   Eigen::Matrix3Xd cloud = raised.V;
   for (Eigen::Index i = 0; i < cloud.cols(); ++i) cloud.col(i) += noise(random) * raised.N.col(i);
-  // The bends alone (the defaults); then with the noisy normals leaning on the template's
-  // (DenseOptions::normal_prior, off by default).
-  DenseOptions rest_shape;
+  // The bends alone, the cloud's normals as estimated; then the defaults, with the noisy
+  // normals leaning on the template's (DenseOptions::normal_prior).
+  DenseOptions own;
+  own.normal_prior = false;
+  DenseOptions rest_shape = own;
   rest_shape.free_bend = 100.0;  // past every bend: none kept
-  DenseOptions prior;
-  prior.normal_prior = true;
-  const DenseResult kept = AlignDense(*model_, coarse, cloud, Eigen::Matrix3Xd());
+  const DenseResult kept = AlignDense(*model_, coarse, cloud, Eigen::Matrix3Xd(), own);
   const DenseResult relaxed = AlignDense(*model_, coarse, cloud, Eigen::Matrix3Xd(), rest_shape);
-  const DenseResult leaning = AlignDense(*model_, coarse, cloud, Eigen::Matrix3Xd(), prior);
+  const DenseResult leaning = AlignDense(*model_, coarse, cloud, Eigen::Matrix3Xd());
   ASSERT_TRUE(kept.ok) << kept.error;
   ASSERT_TRUE(relaxed.ok) << relaxed.error;
   ASSERT_TRUE(leaning.ok) << leaning.error;
   // Measured (template sizes): turned 0.069, kept 0.077, relaxed 0.141 (at rest 0.310): against
   // E_reg from the rest shape the arm goes back about 30 % of the way, with the kept bends
-  // hardly at all. With the normals leaning on the template's as well: 0.048.
+  // hardly at all. With the normals leaning on the template's as well (the defaults): 0.052.
   const double kept_error = ArmError(kept.state), relaxed_error = ArmError(relaxed.state);
   EXPECT_LT(kept_error, 1.5 * 0.077);
   EXPECT_GT(relaxed_error, 0.141 / 1.5);
   EXPECT_LT(kept_error, 0.75 * relaxed_error);
   const double leaning_error = ArmError(leaning.state);
-  EXPECT_LT(leaning_error, 1.5 * 0.048);
+  std::printf("arm error (template sizes): kept %.3f, relaxed %.3f, leaning %.3f\n", kept_error,
+              relaxed_error, leaning_error);
+  EXPECT_LT(leaning_error, 1.5 * 0.052);
   EXPECT_LT(leaning_error, 0.8 * kept_error);
 }
 

@@ -161,7 +161,7 @@ grep -q -- "--target-units mm would read it as 1\.[0-9]* m" <<<"$last_out" ||
   { echo "FAIL: the units warning does not name --target-units mm"; failures=$((failures + 1)); }
 # Told its units, the same scan morphs as the one in metres: no warning, the check reads the
 # carcass's size, and the deformed template is written in millimetres, lying on the scan.
-check "morph --target-units mm reads a scan in millimetres" 0 "size [01]\.[0-9]* -> confidence" \
+check "morph --target-units mm reads a scan in millimetres" 0 "confidence [0-9.]* (.*size [01]\.[0-9]*)" \
   "$vbutcher" morph --template "$work/set/template.ply" --target "$work/millimetres.ply" --out "$work/mm.ply" \
   --stage full --annotations "$work/set/template_annotations.yaml" --target-units mm
 if grep -q "other units" <<<"$last_out"; then
@@ -304,7 +304,7 @@ check "template compile warns of a template in millimetres" 0 \
   "template_mm.ply is 1[0-9]* across, read as metres: is it in other units?" \
   "$vbutcher" template compile --template "$work/template_mm.ply" --annotations "$work/set/template_annotations.yaml" -o "$work/mm.vbt"
 check "a morph 1000 times smaller than its template is not trusted" 0 \
-  "confidence 0.00: the morph is 0.00[0-9]* times the template's size" \
+  "confidence 0.00 (.*): the morph is 0.00[0-9]* times the template's size" \
   "$vbutcher" morph --model "$work/mm.vbt" --target "$work/set/target_001_cloud.ply" --out "$work/mm.ply" --stage full --cuts "$work/mm.json"
 /usr/bin/python3 - "$work/mm.json" <<'PY' || failures=$((failures + 1))
 import json, sys
@@ -337,8 +337,9 @@ grep -q "the input's vertices lie [0-9.]* from the wrap on average" <<<"$last_ou
 check "morph reads an unevenly meshed target as its surface" 0 \
   "spider.obj is read as its surface (meshed unevenly; vertex areas spread [0-9.]* times, over 6 is uneven): 20000 points" \
   "$vbutcher" morph --template "$work/spider.ply" --target "$spider" --out "$work/x.ply" --stage full
-check_line=$(grep -oE "size [0-9.]+ -> confidence [0-9.]+" <<<"$last_out")
-if awk -v l="$check_line" 'BEGIN { split(l, w, " "); exit !(w[2] > 0.985 && w[2] < 1.015 && w[5] >= 0.9) }'; then
+check_line=$(grep -oE "morph: check: confidence [0-9.]+ .*size [0-9.]+\)" <<<"$last_out")
+if awk -v l="$check_line" 'BEGIN { n = split(l, w, " "); size = w[n] + 0
+                                  exit !(size > 0.985 && size < 1.015 && w[4] + 0 >= 0.9) }'; then
   echo "ok: the wrapped spider morphs onto the spider ($check_line)"
 else
   echo "FAIL: the wrapped spider onto the spider: '$check_line' (measured size 0.993, confidence 0.95)"
