@@ -143,8 +143,10 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   // below do.
   phase = std::chrono::steady_clock::now();
   // Each point's nearest vertex of the posed template: its normal signs the point's (and, with
-  // the normal prior, is what the point's plane leans on; found again each round).
-  std::vector<int> nearest_posed = NearestEach(PointIndex(posed.V), points, pool);
+  // the normal prior, is what the point's plane leans on; found again each round). The tree
+  // holds the posed template as it stands until the first round's deformation.
+  std::optional<PointIndex> posed_tree(std::in_place, posed.V);
+  std::vector<int> nearest_posed = NearestEach(*posed_tree, points, pool);
   Eigen::Matrix3Xd normals;
   if (target_normals.cols() == 0) {
     result.normal_passes = NormalPassesForNoise(relative_surface_noise, options.max_normal_passes);
@@ -276,12 +278,13 @@ DenseResult AlignDense(const TemplateModel& model, const CoarseResult& coarse,
   DeformationScratch scratch;  // one for every round's solve
   for (int round = 0; round < options.rounds; ++round) {
     if (options.unbias_plane_points) curvature = geometry::CurvatureSums(posed, posed.N);
-    // With the normal prior, the posed template's kd-tree serves the blend and the reverse
-    // association; without, the reverse association builds it on its own thread.
-    std::optional<PointIndex> posed_tree;
-    if (leaning.cols() > 0) {
-      posed_tree.emplace(posed.V);
-      if (round > 0) {
+    // The posed template's kd-tree: the first round's is the one built above. After that,
+    // with the normal prior it is built here for the blend and serves the reverse association
+    // too; without, the reverse association builds it on its own thread.
+    if (round > 0) {
+      posed_tree.reset();
+      if (leaning.cols() > 0) {
+        posed_tree.emplace(posed.V);
         nearest_posed = NearestEach(*posed_tree, points, pool);
         BlendNormals(normals, posed.N, nearest_posed, result.normal_prior_weight,
                      options.normal_prior_min_cosine, &leaning);
