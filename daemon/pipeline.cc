@@ -667,10 +667,11 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
                       result.cleaning.stride);
         text += numbers;
       }
-      if (const morph::CleaningSummary& c = result.cleaning; c.strays + c.detached > 0) {
+      if (const morph::CleaningSummary& c = result.cleaning; morph::Removed(c) > 0) {
         std::snprintf(numbers, sizeof numbers,
-                      "; clutter left out: %d stray points, %d points in %d detached pieces",
-                      c.strays, c.detached, c.pieces_dropped);
+                      "; clutter left out: %d stray points, %d points in %d detached pieces, %d "
+                      "in %d flat pieces",
+                      c.strays, c.detached, c.pieces_dropped, c.flat, c.flat_pieces);
         text += numbers;
       }
       text += "; cut confidence";

@@ -41,6 +41,8 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
                      {"strays", cleaning->strays},
                      {"detached", cleaning->detached},
                      {"pieces_dropped", cleaning->pieces_dropped},
+                     {"flat", cleaning->flat},
+                     {"flat_pieces", cleaning->flat_pieces},
                      {"seconds", cleaning->seconds}};
   }
   j["ok"] = r.ok;

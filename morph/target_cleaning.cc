@@ -1,5 +1,6 @@
 #include "morph/target_cleaning.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <boost/pending/disjoint_sets.hpp>
 #include <chrono>
@@ -11,6 +12,99 @@
 #include "morph/point_index.h"
 
 namespace vb::morph {
+namespace {
+
+// The pieces of @p piece_of (each kept point's piece, -1 for a dropped one) that are flat and
+// wide beside the body, and have it on one side (CleaningOptions::flat_thickness): their
+// points are no longer kept or in a piece, and the piece's size becomes 0.
+void DropFlatPieces(const Eigen::Matrix3Xd& points, const CleaningOptions& options,
+                    std::vector<int>* piece_of, std::vector<int>* piece_size,
+                    std::vector<char>* keep, CleaningSummary* summary) {
+  if (!(options.flat_thickness > 0.0)) return;
+  const Eigen::Index n = points.cols();
+  const std::vector<int>& piece = *piece_of;
+  // Each piece's centroid and principal axes, from its points' sums about its first point
+  // (so coordinates far from the origin lose no precision).
+  std::vector<int> slot(static_cast<std::size_t>(n), -1);
+  std::vector<int> roots;
+  for (Eigen::Index p = 0; p < n; ++p) {
+    if ((*piece_size)[static_cast<std::size_t>(p)] < 4) continue;  // no plane in 3 points
+    slot[static_cast<std::size_t>(p)] = static_cast<int>(roots.size());
+    roots.push_back(static_cast<int>(p));
+  }
+  if (roots.size() < 2) return;  // flat or not, a lone piece is the body
+  std::vector<Eigen::Vector3d> origin(roots.size()), sum(roots.size(), Eigen::Vector3d::Zero());
+  std::vector<Eigen::Matrix3d> outer(roots.size(), Eigen::Matrix3d::Zero());
+  std::vector<char> started(roots.size(), 0);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const int p = piece[static_cast<std::size_t>(i)];
+    if (p < 0 || slot[static_cast<std::size_t>(p)] < 0) continue;
+    const auto s = static_cast<std::size_t>(slot[static_cast<std::size_t>(p)]);
+    if (!started[s]) origin[s] = points.col(i), started[s] = 1;
+    const Eigen::Vector3d x = points.col(i) - origin[s];
+    sum[s] += x;
+    outer[s] += x * x.transpose();
+  }
+  struct Shape {
+    Eigen::Vector3d centre, normal;
+    double thickness = 0.0, width = 0.0;  // standard deviations across and along the plane
+    bool thin = false;
+  };
+  std::vector<Shape> shapes(roots.size());
+  int body = -1;  // slot of the largest piece that is not thin
+  for (std::size_t s = 0; s < roots.size(); ++s) {
+    const double count = (*piece_size)[static_cast<std::size_t>(roots[s])];
+    Shape& shape = shapes[s];
+    const Eigen::Vector3d mean = sum[s] / count;
+    shape.centre = origin[s] + mean;
+    const Eigen::Matrix3d covariance = outer[s] / count - mean * mean.transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(covariance);
+    const Eigen::Vector3d spread = eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt();  // ascending
+    shape.normal = eigen.eigenvectors().col(0);
+    shape.thickness = spread(0);
+    shape.width = spread(1);
+    shape.thin = spread(0) <= options.flat_thickness * spread(1);
+    if (!shape.thin &&
+        (body < 0 ||
+         count > (*piece_size)[static_cast<std::size_t>(roots[static_cast<std::size_t>(body)])]))
+      body = static_cast<int>(s);
+  }
+  if (body < 0) return;
+  // The body's box, and on which side of each thin piece's plane its points lie.
+  const int body_root = roots[static_cast<std::size_t>(body)];
+  Eigen::Vector3d low = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d high = -low;
+  std::vector<int> above(roots.size(), 0), below(roots.size(), 0);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (piece[static_cast<std::size_t>(i)] != body_root) continue;
+    low = low.cwiseMin(points.col(i));
+    high = high.cwiseMax(points.col(i));
+    for (std::size_t s = 0; s < roots.size(); ++s) {
+      if (!shapes[s].thin) continue;
+      // Beyond three of the plane's own deviations: clearly on one side.
+      const double d = shapes[s].normal.dot(points.col(i) - shapes[s].centre);
+      if (d > 3.0 * shapes[s].thickness) ++above[s];
+      if (d < -3.0 * shapes[s].thickness) ++below[s];
+    }
+  }
+  const double diagonal = (high - low).norm();
+  for (std::size_t s = 0; s < roots.size(); ++s) {
+    const Shape& shape = shapes[s];
+    if (!shape.thin || std::sqrt(12.0) * shape.width < options.flat_width * diagonal) continue;
+    if (above[s] > 0 && below[s] > 0) continue;  // the body on both sides: not a background
+    const int root = roots[s];
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (piece[static_cast<std::size_t>(i)] != root) continue;
+      (*keep)[static_cast<std::size_t>(i)] = 0;
+      (*piece_of)[static_cast<std::size_t>(i)] = -1;
+    }
+    summary->flat += (*piece_size)[static_cast<std::size_t>(root)];
+    ++summary->flat_pieces;
+    (*piece_size)[static_cast<std::size_t>(root)] = 0;
+  }
+}
+
+}  // namespace
 
 CleanedTarget CleanTarget(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
                           const CleaningOptions& options, std::unique_ptr<PointIndex>* index_out,
@@ -19,8 +113,9 @@ CleanedTarget CleanTarget(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd
   if (index_out != nullptr) index_out->reset();
   VB_DEMAND(normals.cols() == 0 || normals.cols() == points.cols());
   VB_DEMAND(options.neighbours >= 0 && options.stray_spacings > 0 && options.link_spacings > 0 &&
-            options.small_piece >= 0 && options.far_piece >= 0 &&
-            options.max_points_per_vertex >= 0 && template_vertices >= 0);
+            options.small_piece >= 0 && options.far_piece >= 0 && options.flat_thickness >= 0 &&
+            options.flat_width >= 0 && options.max_points_per_vertex >= 0 &&
+            template_vertices >= 0);
   const Eigen::Index n = points.cols();
   // Far denser than the template: every stride-th point, then cleaned as a cloud of its own.
   const double cap = options.max_points_per_vertex * static_cast<double>(template_vertices);
@@ -126,6 +221,7 @@ CleanedTarget CleanTarget(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd
         static_cast<int>(pieces.find_set(static_cast<std::size_t>(i)));
     ++piece_size[static_cast<std::size_t>(piece[static_cast<std::size_t>(i)])];
   }
+  DropFlatPieces(points, options, &piece, &piece_size, &keep, &out.summary);
   const int largest =
       static_cast<int>(std::max_element(piece_size.begin(), piece_size.end()) - piece_size.begin());
   const int largest_size = piece_size[static_cast<std::size_t>(largest)];
@@ -176,7 +272,7 @@ CleanedTarget CleanTarget(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd
     }
   }
 
-  if (out.summary.strays + out.summary.detached == 0) {
+  if (Removed(out.summary) == 0) {
     if (index_out != nullptr) *index_out = std::move(owned_index);
     keep_all();
     return out;

@@ -32,6 +32,16 @@ struct CleaningOptions {
   double link_spacings = 4.0;
   double small_piece = 0.1;
   double far_piece = 0.05;
+  /// A piece is flat when the spread of its points across their best plane (the smallest
+  /// principal standard deviation) is at most `flat_thickness` of their spread along its
+  /// second axis. A flat piece whose width along that axis (that deviation times sqrt(12), a
+  /// uniform sheet's width) is at least `flat_width` of the body's diagonal, with the body
+  /// (the largest piece that is not flat) on one side of its plane, is a floor, a wall or a
+  /// backdrop the scan took in: dropped whatever its size, and never taken for the body. A
+  /// carcass is nowhere that flat over that width; a flat part joined to the body (the face
+  /// of a split carcass) is in the body's piece and stays. 0 turns the rule off.
+  double flat_thickness = 0.1;
+  double flat_width = 0.25;
   /// A cloud of more points than this many per template vertex is read at every n-th point
   /// (in its column order), the smallest n that brings it within the cap; 0: never. The
   /// surface morph resolves no finer than the template's vertices, and the morph's time grows
@@ -45,10 +55,15 @@ struct CleaningSummary {
   int strays = 0;          ///< points dropped as strays
   int detached = 0;        ///< points dropped in small far pieces of 2 or more
   int pieces_dropped = 0;  ///< how many such pieces
+  int flat = 0;            ///< points dropped in flat pieces (floor, wall, backdrop)
+  int flat_pieces = 0;     ///< how many such pieces
   double spacing = 0.0;    ///< the cloud's median spacing as read, its units (0: not read)
   int stride = 1;          ///< every stride-th point of the input was read (max_points_per_vertex)
   double seconds = 0.0;
 };
+
+/// How many points the cleaning took out in all.
+inline int Removed(const CleaningSummary& s) { return s.strays + s.detached + s.flat; }
 
 /// The cloud with its clutter taken out.
 struct CleanedTarget {
@@ -58,11 +73,11 @@ struct CleanedTarget {
   CleaningSummary summary;
 };
 
-/// Takes stray points and small detached pieces out of @p points (3 by N, any units), after
-/// reading every n-th of them when there are more than options.max_points_per_vertex times
-/// @p template_vertices. @p normals is 3 by N or empty. Clouds of fewer than
-/// 2 (neighbours + 1) points (after the thinning), or with cleaning off, are not cleaned;
-/// clouds with a non-finite coordinate come back whole, for the stages to name the fault.
+/// Takes stray points, flat background pieces and small detached pieces out of @p points (3 by
+/// N, any units), after reading every n-th of them when there are more than
+/// options.max_points_per_vertex times @p template_vertices. @p normals is 3 by N or empty. Clouds
+/// of fewer than 2 (neighbours + 1) points (after the thinning), or with cleaning off, are not
+/// cleaned; clouds with a non-finite coordinate come back whole, for the stages to name the fault.
 /// @param[out] index when given, the cloud was not thinned and nothing was taken out, receives
 ///   the kd-tree the cleaning built over @p points (which must then outlive it), for the
 ///   stages to reuse; else null.

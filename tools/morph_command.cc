@@ -299,15 +299,15 @@ int RunMorphCommand(const MorphCommandOptions& options) {
           static_cast<long>(read_stride), static_cast<long>(points_read),
           static_cast<long>(target.points.cols()));
     std::printf(
-        "morph: clutter left out: %d stray points, %d points in %d detached pieces (median "
-        "spacing %.1f mm, %.3f s)\n",
-        cleaning.strays, cleaning.detached, cleaning.pieces_dropped, 1000 * cleaning.spacing,
-        cleaning.seconds);
+        "morph: clutter left out: %d stray points, %d points in %d detached pieces, %d in %d "
+        "flat pieces (a floor, a wall; median spacing %.1f mm, %.3f s)\n",
+        cleaning.strays, cleaning.detached, cleaning.pieces_dropped, cleaning.flat,
+        cleaning.flat_pieces, 1000 * cleaning.spacing, cleaning.seconds);
   }
   if (full) {
     // A cloud denser than its noise is used at every n-th point (DenseOptions::thin_to_noise)
     // of those read and kept (the points the dense stage was given).
-    const Eigen::Index given = points_read - result.cleaning.strays - result.cleaning.detached;
+    const Eigen::Index given = points_read - morph::Removed(result.cleaning);
     const std::string used =
         dense.stride == 1
             ? "every point read used"

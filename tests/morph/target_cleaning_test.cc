@@ -109,6 +109,77 @@ TEST(CleanTargetTest, DropsASmallFarPieceAndKeepsNearOrLargeOnes) {
   EXPECT_EQ(beside.points.cols(), bodies.cols() + 300);
 }
 
+// Points on a square grid of @p per_side x @p per_side over @p side metres, centred on
+// @p centre and square to the axis @p across (0, 1 or 2), each nudged up to @p noise metres
+// along it (a floor, a wall or a disc-shaped plate when @p radius bounds it).
+Eigen::Matrix3Xd Sheet(int per_side, double side, const Eigen::Vector3d& centre, int across,
+                       double noise, double radius = std::numeric_limits<double>::infinity()) {
+  Eigen::Matrix3Xd p(3, per_side * per_side);
+  int count = 0;
+  for (int i = 0; i < per_side; ++i)
+    for (int j = 0; j < per_side; ++j) {
+      const double u = side * ((i + 0.5) / per_side - 0.5), v = side * ((j + 0.5) / per_side - 0.5);
+      if (u * u + v * v > radius * radius) continue;
+      Eigen::Vector3d x;
+      x(across) = noise * std::sin(12.9898 * i + 78.233 * j);
+      x((across + 1) % 3) = u;
+      x((across + 2) % 3) = v;
+      p.col(count++) = centre + x;
+    }
+  return p.leftCols(count);
+}
+
+// A floor under the body and a wall behind it, each holding more points than the body: flat
+// pieces wider than a quarter of the body's diagonal with the body on one side go, whatever
+// their size, and the body is not taken for clutter beside them.
+TEST(CleanTargetTest, DropsAFloorAndAWallLargerThanTheBody) {
+  const Eigen::Matrix3Xd body = Sphere(6000, 0.5, Eigen::Vector3d::Zero());
+  const Eigen::Matrix3Xd floor = Sheet(120, 2.4, Eigen::Vector3d(0, 0, -1.0), 2, 0.004);
+  const Eigen::Matrix3Xd wall = Sheet(100, 2.0, Eigen::Vector3d(0, 1.0, 0.5), 1, 0.004);
+  const Eigen::Matrix3Xd cloud = Join(Join(body, floor), wall);
+  const CleanedTarget c = CleanTarget(cloud, cloud, {});
+  EXPECT_EQ(c.summary.flat_pieces, 2);
+  EXPECT_EQ(c.summary.flat, floor.cols() + wall.cols());
+  EXPECT_EQ(Removed(c.summary), c.summary.flat);
+  EXPECT_EQ(c.points, body);
+  EXPECT_EQ(c.normals, body);  // each normal stays with its point
+
+  // With the rule off, the floor is the largest piece and nothing is dropped.
+  CleaningOptions off;
+  off.flat_thickness = 0;
+  const CleanedTarget kept = CleanTarget(cloud, {}, off);
+  EXPECT_EQ(Removed(kept.summary), 0);
+  EXPECT_EQ(kept.points.cols(), cloud.cols());
+}
+
+// What is flat but not a background stays: the flat face of a half body (a split carcass), in
+// the body's own piece; a plate with the body on both sides of its plane. The same plate
+// beside the body goes (with the width limit lowered to the plate's).
+TEST(CleanTargetTest, KeepsFlatPartsOfTheBody) {
+  const Eigen::Matrix3Xd sphere = Sphere(12000, 0.5, Eigen::Vector3d::Zero());
+  std::vector<int> upper;
+  for (Eigen::Index i = 0; i < sphere.cols(); ++i)
+    if (sphere(2, i) >= 0) upper.push_back(static_cast<int>(i));
+  const Eigen::Matrix3Xd half =
+      Join(sphere(Eigen::all, upper), Sheet(50, 1.0, Eigen::Vector3d::Zero(), 2, 0.0, 0.5));
+  const CleanedTarget split = CleanTarget(half, {});
+  EXPECT_EQ(Removed(split.summary), 0);
+  EXPECT_EQ(split.points.cols(), half.cols());
+
+  CleaningOptions narrow;
+  narrow.flat_width = 0.1;  // the plate's width, 0.35 m, is 0.2 of the body's diagonal
+  const Eigen::Matrix3Xd body = Sphere(6000, 0.5, Eigen::Vector3d::Zero());
+  const Eigen::Matrix3Xd inside = Sheet(40, 0.4, Eigen::Vector3d::Zero(), 2, 0.0, 0.2);
+  ASSERT_GT(inside.cols(), 0.1 * body.cols());  // not a small piece either
+  const CleanedTarget within = CleanTarget(Join(body, inside), {}, narrow);
+  EXPECT_EQ(Removed(within.summary), 0);
+  const Eigen::Matrix3Xd below = inside.colwise() + Eigen::Vector3d(0, 0, -0.9);
+  const CleanedTarget beside = CleanTarget(Join(body, below), {}, narrow);
+  EXPECT_EQ(beside.summary.flat_pieces, 1);
+  EXPECT_EQ(beside.summary.flat, below.cols());
+  EXPECT_EQ(beside.points, body);
+}
+
 // Rows 0.1 m apart with points 0.01 m apart along them (a line scanner's): the 8 nearest
 // neighbours never cross between rows, so every row is a piece of its own. The first row is
 // 15 m long, the 39 others 1 m: by size and gap most of them would go, but the largest piece
