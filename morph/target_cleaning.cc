@@ -14,21 +14,24 @@
 namespace vb::morph {
 namespace {
 
-// The pieces of @p piece_of (each kept point's piece, -1 for a dropped one) that are flat and
-// wide beside the body, and have it on one side (CleaningOptions::flat_thickness): their
-// points are no longer kept or in a piece, and the piece's size becomes 0.
+// The pieces of @p piece_of (each kept point's piece, -1 for a dropped one) that are floors or
+// walls (CleaningOptions::flat_thickness): their points are no longer kept or in a piece, and
+// the piece's size becomes 0. @p link_limit: the distance that links points into a piece.
 void DropFlatPieces(const Eigen::Matrix3Xd& points, const CleaningOptions& options,
-                    std::vector<int>* piece_of, std::vector<int>* piece_size,
+                    double link_limit, std::vector<int>* piece_of, std::vector<int>* piece_size,
                     std::vector<char>* keep, CleaningSummary* summary) {
   if (!(options.flat_thickness > 0.0)) return;
+  constexpr double kOtherSide = 0.01;  // of the body's points, on a floor's other side
+  constexpr double kParallel = 0.95;   // cosine between two rows' normals
   const Eigen::Index n = points.cols();
-  const std::vector<int>& piece = *piece_of;
+  std::vector<int>& piece = *piece_of;
+  std::vector<int>& size_of = *piece_size;
   // Each piece's centroid and principal axes, from its points' sums about its first point
   // (so coordinates far from the origin lose no precision).
   std::vector<int> slot(static_cast<std::size_t>(n), -1);
   std::vector<int> roots;
   for (Eigen::Index p = 0; p < n; ++p) {
-    if ((*piece_size)[static_cast<std::size_t>(p)] < 4) continue;  // no plane in 3 points
+    if (size_of[static_cast<std::size_t>(p)] < 4) continue;  // no plane in 3 points
     slot[static_cast<std::size_t>(p)] = static_cast<int>(roots.size());
     roots.push_back(static_cast<int>(p));
   }
@@ -40,20 +43,23 @@ void DropFlatPieces(const Eigen::Matrix3Xd& points, const CleaningOptions& optio
     const int p = piece[static_cast<std::size_t>(i)];
     if (p < 0 || slot[static_cast<std::size_t>(p)] < 0) continue;
     const auto s = static_cast<std::size_t>(slot[static_cast<std::size_t>(p)]);
-    if (!started[s]) origin[s] = points.col(i), started[s] = 1;
+    if (!started[s]) {
+      origin[s] = points.col(i);
+      started[s] = 1;
+    }
     const Eigen::Vector3d x = points.col(i) - origin[s];
     sum[s] += x;
     outer[s] += x * x.transpose();
   }
   struct Shape {
-    Eigen::Vector3d centre, normal;
-    double thickness = 0.0, width = 0.0;  // standard deviations across and along the plane
+    Eigen::Vector3d centre, normal, along;
+    double thickness = 0.0, width = 0.0;  // standard deviations across the plane and along it
     bool thin = false;
   };
   std::vector<Shape> shapes(roots.size());
   int body = -1;  // slot of the largest piece that is not thin
   for (std::size_t s = 0; s < roots.size(); ++s) {
-    const double count = (*piece_size)[static_cast<std::size_t>(roots[s])];
+    const double count = size_of[static_cast<std::size_t>(roots[s])];
     Shape& shape = shapes[s];
     const Eigen::Vector3d mean = sum[s] / count;
     shape.centre = origin[s] + mean;
@@ -61,46 +67,86 @@ void DropFlatPieces(const Eigen::Matrix3Xd& points, const CleaningOptions& optio
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(covariance);
     const Eigen::Vector3d spread = eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt();  // ascending
     shape.normal = eigen.eigenvectors().col(0);
+    shape.along = eigen.eigenvectors().col(1);
     shape.thickness = spread(0);
     shape.width = spread(1);
     shape.thin = spread(0) <= options.flat_thickness * spread(1);
     if (!shape.thin &&
         (body < 0 ||
-         count > (*piece_size)[static_cast<std::size_t>(roots[static_cast<std::size_t>(body)])]))
+         count > size_of[static_cast<std::size_t>(roots[static_cast<std::size_t>(body)])]))
       body = static_cast<int>(s);
   }
-  if (body < 0) return;
-  // The body's box, and on which side of each thin piece's plane its points lie.
+  if (body < 0) return;  // all flat: nothing to judge a floor by
   const int body_root = roots[static_cast<std::size_t>(body)];
-  Eigen::Vector3d low = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
-  Eigen::Vector3d high = -low;
-  std::vector<int> above(roots.size(), 0), below(roots.size(), 0);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    if (piece[static_cast<std::size_t>(i)] != body_root) continue;
-    low = low.cwiseMin(points.col(i));
-    high = high.cwiseMax(points.col(i));
-    for (std::size_t s = 0; s < roots.size(); ++s) {
-      if (!shapes[s].thin) continue;
-      // Beyond three of the plane's own deviations: clearly on one side.
-      const double d = shapes[s].normal.dot(points.col(i) - shapes[s].centre);
-      if (d > 3.0 * shapes[s].thickness) ++above[s];
-      if (d < -3.0 * shapes[s].thickness) ++below[s];
-    }
-  }
-  const double diagonal = (high - low).norm();
+  const int body_size = size_of[static_cast<std::size_t>(body_root)];
+  std::vector<int> body_columns;
+  body_columns.reserve(static_cast<std::size_t>(body_size));
+  for (Eigen::Index i = 0; i < n; ++i)
+    if (piece[static_cast<std::size_t>(i)] == body_root)
+      body_columns.push_back(static_cast<int>(i));
+  const Eigen::Matrix3Xd body_points = points(Eigen::all, body_columns);
+  const double diagonal = geometry::BoundingBoxDiagonal(body_points);
+  // The thin pieces wide beside the body, with the body on one side of their plane.
+  std::vector<std::size_t> candidates;
   for (std::size_t s = 0; s < roots.size(); ++s) {
     const Shape& shape = shapes[s];
     if (!shape.thin || std::sqrt(12.0) * shape.width < options.flat_width * diagonal) continue;
-    if (above[s] > 0 && below[s] > 0) continue;  // the body on both sides: not a background
-    const int root = roots[s];
-    for (Eigen::Index i = 0; i < n; ++i) {
-      if (piece[static_cast<std::size_t>(i)] != root) continue;
-      (*keep)[static_cast<std::size_t>(i)] = 0;
-      (*piece_of)[static_cast<std::size_t>(i)] = -1;
+    // Beyond three of the plane's own deviations: clearly on one side.
+    const Eigen::ArrayXd d =
+        (shape.normal.transpose() * (body_points.colwise() - shape.centre)).transpose().array();
+    const long above = (d > 3.0 * shape.thickness).count();
+    const long below = (d < -3.0 * shape.thickness).count();
+    if (static_cast<double>(std::min(above, below)) <= kOtherSide * body_size)
+      candidates.push_back(s);
+  }
+  if (candidates.empty()) return;
+  // A floor reaches out around the body: at least half its points lie farther than the link
+  // limit from the body's shadow on its plane (a split carcass's face lies under the carcass).
+  std::vector<char> floor(roots.size(), 0), candidate(roots.size(), 0);
+  for (std::size_t s : candidates) candidate[s] = 1;
+  std::vector<std::vector<int>> members(roots.size());
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const int p = piece[static_cast<std::size_t>(i)];
+    if (p < 0 || slot[static_cast<std::size_t>(p)] < 0) continue;
+    const auto s = static_cast<std::size_t>(slot[static_cast<std::size_t>(p)]);
+    if (candidate[s]) members[s].push_back(static_cast<int>(i));
+  }
+  for (std::size_t s : candidates) {
+    const Shape& shape = shapes[s];
+    const Eigen::Vector3d other = shape.normal.cross(shape.along);
+    Eigen::Matrix3Xd shadow = Eigen::Matrix3Xd::Zero(3, body_points.cols());
+    shadow.row(0) = shape.along.transpose() * body_points;
+    shadow.row(1) = other.transpose() * body_points;
+    const PointIndex shadow_index(shadow);
+    long outside = 0;
+    for (int i : members[s]) {
+      const Eigen::Vector3d x(shape.along.dot(points.col(i)), other.dot(points.col(i)), 0.0);
+      outside += (shadow.col(shadow_index.Nearest(x)) - x).norm() > link_limit;
     }
-    summary->flat += (*piece_size)[static_cast<std::size_t>(root)];
+    if (2 * outside < static_cast<long>(members[s].size())) continue;
+    floor[s] = 1;
+  }
+  // Two of them in parallel planes apart (a floor in pieces lies in one plane, a wall across
+  // it) are rows of a line scanner, each in its own plane, that the neighbour graph could not
+  // join: none goes.
+  for (std::size_t s : candidates) {
+    for (std::size_t t : candidates) {
+      if (t <= s || !floor[s] || !floor[t]) continue;
+      const Shape& a = shapes[s];
+      if (std::abs(a.normal.dot(shapes[t].normal)) > kParallel &&
+          std::abs(a.normal.dot(shapes[t].centre - a.centre)) > link_limit)
+        return;
+    }
+  }
+  for (std::size_t s = 0; s < roots.size(); ++s) {
+    if (!floor[s]) continue;
+    for (int i : members[s]) {
+      (*keep)[static_cast<std::size_t>(i)] = 0;
+      piece[static_cast<std::size_t>(i)] = -1;
+    }
+    summary->flat += size_of[static_cast<std::size_t>(roots[s])];
     ++summary->flat_pieces;
-    (*piece_size)[static_cast<std::size_t>(root)] = 0;
+    size_of[static_cast<std::size_t>(roots[s])] = 0;
   }
 }
 
@@ -221,7 +267,7 @@ CleanedTarget CleanTarget(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd
         static_cast<int>(pieces.find_set(static_cast<std::size_t>(i)));
     ++piece_size[static_cast<std::size_t>(piece[static_cast<std::size_t>(i)])];
   }
-  DropFlatPieces(points, options, &piece, &piece_size, &keep, &out.summary);
+  DropFlatPieces(points, options, link_limit, &piece, &piece_size, &keep, &out.summary);
   const int largest =
       static_cast<int>(std::max_element(piece_size.begin(), piece_size.end()) - piece_size.begin());
   const int largest_size = piece_size[static_cast<std::size_t>(largest)];

@@ -32,14 +32,18 @@ struct CleaningOptions {
   double link_spacings = 4.0;
   double small_piece = 0.1;
   double far_piece = 0.05;
-  /// A piece is flat when the spread of its points across their best plane (the smallest
-  /// principal standard deviation) is at most `flat_thickness` of their spread along its
-  /// second axis. A flat piece whose width along that axis (that deviation times sqrt(12), a
-  /// uniform sheet's width) is at least `flat_width` of the body's diagonal, with the body
-  /// (the largest piece that is not flat) on one side of its plane, is a floor, a wall or a
-  /// backdrop the scan took in: dropped whatever its size, and never taken for the body. A
-  /// carcass is nowhere that flat over that width; a flat part joined to the body (the face
-  /// of a split carcass) is in the body's piece and stays. 0 turns the rule off.
+  /// A floor, a wall or a backdrop the scan took in, apart from the body: a piece whose
+  /// points spread across their best plane at most `flat_thickness` of their spread along its
+  /// second axis (standard deviations), at least `flat_width` of the body's diagonal wide
+  /// (that second deviation times sqrt(12), a uniform sheet's width), with the body (the
+  /// largest piece that is not flat) on one side of its plane (at most 1 % of the body's
+  /// points beyond three of the plane's deviations on the other), and with at least half its
+  /// points farther than the link radius from the body's shadow on its plane (a floor reaches
+  /// out around the body; the face of a split carcass, or a floor cropped to the carcass's
+  /// outline, lies under it and stays). Such a piece goes whatever its size and is never taken
+  /// for the body, unless two such pieces lie in parallel planes apart: rows of a line scanner
+  /// the neighbour graph could not join, and none goes. A flat part joined to the body is in
+  /// the body's piece. 0 turns the rule off; a floor the body touches is not found by it.
   double flat_thickness = 0.1;
   double flat_width = 0.25;
   /// A cloud of more points than this many per template vertex is read at every n-th point

@@ -98,7 +98,7 @@ TEST_F(MorpherTest, ClutterAroundTheCarcassIsLeftOut) {
   const CarcassResult on_clutter = morpher.Morph(cloud, {});
   ASSERT_TRUE(on_clean.ok) << on_clean.error;
   ASSERT_TRUE(on_clutter.ok) << on_clutter.error;
-  EXPECT_EQ(on_clean.cleaning.strays + on_clean.cleaning.detached, 0);
+  EXPECT_EQ(Removed(on_clean.cleaning), 0);
   // The hook is the one piece dropped; 277 strays (measured): the grid points farther than 8
   // spacings from the surface, and 29 nearer ones that reach no core point.
   EXPECT_EQ(on_clutter.cleaning.pieces_dropped, 1);

@@ -137,12 +137,34 @@ TEST(CleanTargetTest, DropsAFloorAndAWallLargerThanTheBody) {
   const Eigen::Matrix3Xd floor = Sheet(120, 2.4, Eigen::Vector3d(0, 0, -1.0), 2, 0.004);
   const Eigen::Matrix3Xd wall = Sheet(100, 2.0, Eigen::Vector3d(0, 1.0, 0.5), 1, 0.004);
   const Eigen::Matrix3Xd cloud = Join(Join(body, floor), wall);
-  const CleanedTarget c = CleanTarget(cloud, cloud, {});
+  std::unique_ptr<PointIndex> index;
+  const CleanedTarget c = CleanTarget(cloud, cloud, {}, &index);
+  EXPECT_EQ(index, nullptr);  // the kd-tree was over the cloud, not the points kept
   EXPECT_EQ(c.summary.flat_pieces, 2);
   EXPECT_EQ(c.summary.flat, floor.cols() + wall.cols());
   EXPECT_EQ(Removed(c.summary), c.summary.flat);
   EXPECT_EQ(c.points, body);
   EXPECT_EQ(c.normals, body);  // each normal stays with its point
+
+  // A floor of 15 times the body's points goes as well.
+  const Eigen::Matrix3Xd dense = Sheet(300, 2.4, Eigen::Vector3d(0, 0, -1.0), 2, 0.004);
+  const CleanedTarget under = CleanTarget(Join(body, dense), {});
+  EXPECT_EQ(under.summary.flat, dense.cols());
+  EXPECT_EQ(under.points, body);
+
+  // A leg reaching past the floor's edge, its last points below the floor's plane (under 1 %
+  // of the body's): the floor still goes.
+  Eigen::Matrix3Xd leg(3, 75);
+  for (int i = 0; i < leg.cols(); ++i)
+    leg.col(i) = Eigen::Vector3d(0.45, 0, -0.2) + (i / 74.0) * Eigen::Vector3d(1.15, 0, -0.9);
+  const Eigen::Matrix3Xd limbed = Join(body, leg);
+  long below = 0;
+  for (Eigen::Index i = 0; i < leg.cols(); ++i) below += leg(2, i) < -1.02;
+  ASSERT_GT(below, 0);
+  ASSERT_LT(below, 0.01 * limbed.cols());
+  const CleanedTarget reaching = CleanTarget(Join(limbed, floor), {});
+  EXPECT_EQ(reaching.summary.flat, floor.cols());
+  EXPECT_EQ(reaching.points, limbed);
 
   // With the rule off, the floor is the largest piece and nothing is dropped.
   CleaningOptions off;
@@ -153,8 +175,9 @@ TEST(CleanTargetTest, DropsAFloorAndAWallLargerThanTheBody) {
 }
 
 // What is flat but not a background stays: the flat face of a half body (a split carcass), in
-// the body's own piece; a plate with the body on both sides of its plane. The same plate
-// beside the body goes (with the width limit lowered to the plate's).
+// the body's own piece or apart from it under its shadow; a plate with the body on both sides
+// of its plane, inside it or beside it, or right under it (the width limit lowered to the
+// plate's, 0.35 m). A floor as wide as the body, beside and below it, goes.
 TEST(CleanTargetTest, KeepsFlatPartsOfTheBody) {
   const Eigen::Matrix3Xd sphere = Sphere(12000, 0.5, Eigen::Vector3d::Zero());
   std::vector<int> upper;
@@ -173,11 +196,39 @@ TEST(CleanTargetTest, KeepsFlatPartsOfTheBody) {
   ASSERT_GT(inside.cols(), 0.1 * body.cols());  // not a small piece either
   const CleanedTarget within = CleanTarget(Join(body, inside), {}, narrow);
   EXPECT_EQ(Removed(within.summary), 0);
-  const Eigen::Matrix3Xd below = inside.colwise() + Eigen::Vector3d(0, 0, -0.9);
-  const CleanedTarget beside = CleanTarget(Join(body, below), {}, narrow);
+  // Off to the side in the same plane, out of the body's shadow: only the side keeps it.
+  const Eigen::Matrix3Xd fin = inside.colwise() + Eigen::Vector3d(1.2, 0, 0);
+  const CleanedTarget level = CleanTarget(Join(body, fin), {}, narrow);
+  EXPECT_EQ(Removed(level.summary), 0);
+  const Eigen::Matrix3Xd face = Sheet(50, 1.0, Eigen::Vector3d(0, 0, -0.25), 2, 0.0, 0.45);
+  const CleanedTarget apart = CleanTarget(Join(sphere(Eigen::all, upper), face), {});
+  EXPECT_EQ(Removed(apart.summary), 0);
+  // A plate right under the body (a floor cropped to the body's outline) lies in its shadow.
+  const Eigen::Matrix3Xd under = inside.colwise() + Eigen::Vector3d(0, 0, -0.9);
+  EXPECT_EQ(Removed(CleanTarget(Join(body, under), {}, narrow).summary), 0);
+  const Eigen::Matrix3Xd aside = Sheet(100, 1.0, Eigen::Vector3d(1.6, 0, -0.9), 2, 0.0, 0.5);
+  const CleanedTarget beside = CleanTarget(Join(body, aside), {});
   EXPECT_EQ(beside.summary.flat_pieces, 1);
-  EXPECT_EQ(beside.summary.flat, below.cols());
+  EXPECT_EQ(beside.summary.flat, aside.cols());
   EXPECT_EQ(beside.points, body);
+}
+
+// Rows of a line scanner across a curved body (arcs of radius 0.3 m over 120 degrees, each in
+// its own plane, 0.1 m apart, so each a piece) and a small patch where the rows came closer (a
+// ball of 30 points): every arc is flat and wide beside the patch, out of its shadow, but the
+// arcs lie in parallel planes apart, and nothing goes.
+TEST(CleanTargetTest, KeepsCurvedScanRows) {
+  const Eigen::Matrix3Xd patch = Sphere(30, 0.05, Eigen::Vector3d(2.0, -0.5, 0.3));
+  Eigen::Matrix3Xd rows(3, 40 * 120);
+  for (int r = 0; r < 40; ++r)
+    for (int c = 0; c < 120; ++c) {
+      const double t = (c / 119.0 - 0.5) * 2.0 * std::numbers::pi / 3.0;
+      rows.col(r * 120 + c) = Eigen::Vector3d(0.3 * std::sin(t), 0.1 * r,
+                                              0.3 * std::cos(t) + 0.0005 * std::sin(7.0 * c));
+    }
+  const CleanedTarget c = CleanTarget(Join(rows, patch), {});
+  EXPECT_EQ(Removed(c.summary), 0);
+  EXPECT_EQ(c.points.cols(), rows.cols() + patch.cols());
 }
 
 // Rows 0.1 m apart with points 0.01 m apart along them (a line scanner's): the 8 nearest
