@@ -77,6 +77,9 @@ void DropFlatPieces(const Eigen::Matrix3Xd& points, const CleaningOptions& optio
       body = static_cast<int>(s);
   }
   if (body < 0) return;  // all flat: nothing to judge a floor by
+  // None flat (a carcass and its clutter): the body's points are not gathered.
+  if (std::none_of(shapes.begin(), shapes.end(), [](const Shape& shape) { return shape.thin; }))
+    return;
   const int body_root = roots[static_cast<std::size_t>(body)];
   const int body_size = size_of[static_cast<std::size_t>(body_root)];
   std::vector<int> body_columns;
