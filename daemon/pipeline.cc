@@ -674,6 +674,12 @@ void Pipeline::RunJob(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& no
                       c.strays, c.detached, c.pieces_dropped, c.flat, c.flat_pieces);
         text += numbers;
       }
+      if (const morph::CleaningSummary& c = result.cleaning; c.tried_back > 0) {
+        std::snprintf(numbers, sizeof numbers,
+                      "; %d points of pieces apart tried back (%.3f s): %s", c.tried_back,
+                      c.tried_back_seconds, c.rejoined > 0 ? "put back" : "left out");
+        text += numbers;
+      }
       text += "; cut confidence";
       for (const morph::TransferredCut& cut : result.cuts) {
         std::snprintf(numbers, sizeof numbers, " %.2f", cut.confidence);

@@ -1,7 +1,9 @@
 #include "morph/morph_carcass.h"
 
+#include <algorithm>
 #include <chrono>
 #include <exception>
+#include <iterator>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -80,29 +82,21 @@ CarcassResult MorphFromCoarse(const TemplateModel& model, const io::Annotations&
   return r;
 }
 
-CoarseResult CleanAndAlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target,
-                                 const Eigen::Matrix3Xd& normals, const MorphOptions& options,
-                                 WorkerPool* pool, CleanedTarget* cleaned) {
-  const bool checkable =
-      target.allFinite() && (normals.cols() == 0 || normals.cols() == target.cols());
-  if (!checkable) {
-    *cleaned = CleanedTarget{};
-    cleaned->points = target;
-    cleaned->normals = normals;
-    return AlignCoarse(model, target, options.coarse, pool);
-  }
-  // When the target is read whole and nothing is taken out, the cleaning's kd-tree over it
-  // serves the coarse stage too (it refers to `target`, which the cleaned copy equals).
-  std::unique_ptr<PointIndex> index;
-  *cleaned = CleanTarget(target, normals, options.clean, &index, pool, model.V.cols());
+namespace {
+
+// AlignCoarse on the cleaned cloud, with the noise read for the posture fit's normals.
+// @p index, when given, is a kd-tree over @p target, which then equals cleaned.points.
+CoarseResult AlignCleanedCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target,
+                                const CleanedTarget& cleaned, std::unique_ptr<PointIndex> index,
+                                const MorphOptions& options, WorkerPool* pool) {
   const auto start = std::chrono::steady_clock::now();
-  const Eigen::Matrix3Xd& points = index != nullptr ? target : cleaned->points;
+  const Eigen::Matrix3Xd& points = index != nullptr ? target : cleaned.points;
   if (index == nullptr && points.cols() > 0) index = std::make_unique<PointIndex>(points);
   // A cloud without normals: the posture fit estimates its own, over as many points as the
   // noise asks, by the dense stage's rule (its noise reading and passes), the noise read here
   // as a fraction of the cloud's size where the dense stage reads it in template sizes.
   int fit_normal_passes = 1;
-  const bool estimates_normals = cleaned->normals.cols() == 0 &&
+  const bool estimates_normals = cleaned.normals.cols() == 0 &&
                                  options.coarse.articulation.max_normal_angle_deg < 90.0 &&
                                  options.coarse.articulated_candidates > 0;
   if (estimates_normals && index != nullptr && points.cols() >= 50) {
@@ -118,9 +112,53 @@ CoarseResult CleanAndAlignCoarse(const TemplateModel& model, const Eigen::Matrix
   const double prepared_seconds = Since(start);  // the tree and the noise reading
   CoarseResult result =
       AlignCoarse(model, points, options.coarse, pool, index.get(),
-                  cleaned->normals.cols() > 0 ? &cleaned->normals : nullptr, fit_normal_passes);
+                  cleaned.normals.cols() > 0 ? &cleaned.normals : nullptr, fit_normal_passes);
   result.total_seconds += prepared_seconds;
   return result;
+}
+
+// The cleaned cloud with its small far pieces put back, in input order.
+CleanedTarget Rejoined(const Eigen::Matrix3Xd& target, const Eigen::Matrix3Xd& normals,
+                       const CleanedTarget& cleaned) {
+  CleanedTarget out;
+  out.kept.reserve(cleaned.kept.size() + cleaned.detached.size());
+  std::merge(cleaned.kept.begin(), cleaned.kept.end(), cleaned.detached.begin(),
+             cleaned.detached.end(), std::back_inserter(out.kept));
+  out.points = target(Eigen::all, out.kept);
+  if (normals.cols() != 0) out.normals = normals(Eigen::all, out.kept);
+  out.summary = cleaned.summary;
+  out.summary.rejoined = cleaned.summary.detached;
+  out.summary.rejoined_pieces = cleaned.summary.pieces_dropped;
+  out.summary.detached = 0;
+  out.summary.pieces_dropped = 0;
+  return out;
+}
+
+// True when @p a reads no worse than @p b on every sign of the whole-morph check (false when
+// either reads NaN).
+bool NoWorse(const MorphCheck& a, const MorphCheck& b) {
+  return a.confidence >= b.confidence && a.unexplained <= b.unexplained && a.reach <= b.reach &&
+         a.stretch <= b.stretch;
+}
+
+}  // namespace
+
+CoarseResult CleanAndAlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& target,
+                                 const Eigen::Matrix3Xd& normals, const MorphOptions& options,
+                                 WorkerPool* pool, CleanedTarget* cleaned) {
+  const bool checkable =
+      target.allFinite() && (normals.cols() == 0 || normals.cols() == target.cols());
+  if (!checkable) {
+    *cleaned = CleanedTarget{};
+    cleaned->points = target;
+    cleaned->normals = normals;
+    return AlignCoarse(model, target, options.coarse, pool);
+  }
+  // When the target is read whole and nothing is taken out, the cleaning's kd-tree over it
+  // serves the coarse stage too (it refers to `target`, which the cleaned copy equals).
+  std::unique_ptr<PointIndex> index;
+  *cleaned = CleanTarget(target, normals, options.clean, &index, pool, model.V.cols());
+  return AlignCleanedCoarse(model, target, *cleaned, std::move(index), options, pool);
 }
 
 CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& annotations,
@@ -142,6 +180,38 @@ CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& an
                                     cleaned.normals, options, pool);
   r.cleaning = cleaned.summary;
   if (!r.ok && options.deadline.Passed()) Abandoned(&r, options.deadline);
+  // A small piece apart from the body is a hook or a glimpse of the next carcass, or a limb a
+  // camera shadow cut off. The morph with the pieces put back is kept when its check, which
+  // reads the cloud with them, gives it some confidence and reads no worse on every sign than
+  // the first's (the template reached a limb: the cloud covered at least as well, the
+  // template stretched no more); else the first stands. It is tried only with time left for
+  // 1.5 times the first morph before the deadline.
+  const double first_seconds = Since(start);
+  const auto now = std::chrono::steady_clock::now();
+  const bool time_left =
+      !options.deadline.Passed() &&
+      (options.deadline.at == std::chrono::steady_clock::time_point::max() ||
+       options.deadline.at - now > std::chrono::duration<double>(1.5 * first_seconds));
+  if (options.clean.rejoin_detached && !cleaned.detached.empty() && time_left) {
+    CarcassResult with;
+    CleaningSummary summary;
+    try {
+      const CleanedTarget rejoined = Rejoined(target, normals, cleaned);
+      summary = rejoined.summary;
+      with = MorphFromCoarse(
+          model, annotations,
+          AlignCleanedCoarse(model, target, rejoined, nullptr, WithDeadline(options), pool),
+          rejoined.points, rejoined.normals, options, pool);
+    } catch (const std::exception&) {  // the first morph stands
+      with.ok = false;
+    }
+    if (with.ok && with.check.confidence > 0 && (!r.ok || NoWorse(with.check, r.check))) {
+      r = std::move(with);
+      r.cleaning = summary;
+    }
+    r.cleaning.tried_back = cleaned.summary.detached;
+    r.cleaning.tried_back_seconds = Since(now);
+  }
   r.seconds = Since(start);
   return r;
 }

@@ -25,7 +25,8 @@ struct MorphOptions {
   PartVolumeOptions parts;
   MorphCheckOptions check;
   /// A morph past it stops and fails with "abandoned: ..." (the daemon's job deadline and
-  /// shutdown). It overrides the stages' own.
+  /// shutdown), but for MorphCarcass's second try of pieces apart, whose first morph stands.
+  /// It overrides the stages' own.
   MorphDeadline deadline;
 };
 
@@ -70,7 +71,14 @@ CarcassResult MorphFromCoarse(const TemplateModel& model, const io::Annotations&
                               WorkerPool* pool = nullptr);
 
 /// Morphs @p model onto @p target (points and, optionally, unit normals of the same count)
-/// and carries @p annotations over. Never throws on a bad target: the result says why.
+/// and carries @p annotations over: CleanAndAlignCoarse, then MorphFromCoarse. When the
+/// cleaning dropped small pieces apart from the body, options.clean.rejoin_detached holds and
+/// the deadline leaves 1.5 times the first morph's time, the cloud with them put back is
+/// morphed too, and that morph is returned when its check's confidence is above 0 and, if
+/// the first succeeded, no lower than the first's, with an unexplained share, reach and
+/// stretch no larger (cleaning.rejoined counts the points; cleaning.tried_back and its
+/// seconds say it was tried); else the first, which stands even when the deadline passes
+/// during the second. Never throws on a bad target: the result says why.
 /// @param pool threads to share the work with (none: the caller's alone); see Morpher,
 ///   which keeps one.
 CarcassResult MorphCarcass(const TemplateModel& model, const io::Annotations& annotations,

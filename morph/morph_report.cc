@@ -43,6 +43,10 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
                      {"pieces_dropped", cleaning->pieces_dropped},
                      {"flat", cleaning->flat},
                      {"flat_pieces", cleaning->flat_pieces},
+                     {"rejoined", cleaning->rejoined},
+                     {"rejoined_pieces", cleaning->rejoined_pieces},
+                     {"tried_back", cleaning->tried_back},
+                     {"tried_back_seconds", cleaning->tried_back_seconds},
                      {"seconds", cleaning->seconds}};
   }
   j["ok"] = r.ok;

@@ -176,6 +176,7 @@ CleanedTarget CleanTarget(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd
                     normals.cols() != 0 ? Eigen::Matrix3Xd(normals(Eigen::all, every)) : normals,
                     options, nullptr, pool, 0);
     for (int& column : out.kept) column *= static_cast<int>(stride);
+    for (int& column : out.detached) column *= static_cast<int>(stride);
     out.summary.stride = static_cast<int>(stride);
     out.summary.seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -317,7 +318,9 @@ CleanedTarget CleanTarget(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd
     }
     for (Eigen::Index i = 0; i < n; ++i) {
       const int p = piece[static_cast<std::size_t>(i)];
-      if (p >= 0 && dropped[static_cast<std::size_t>(p)]) keep[static_cast<std::size_t>(i)] = 0;
+      if (p < 0 || !dropped[static_cast<std::size_t>(p)]) continue;
+      keep[static_cast<std::size_t>(i)] = 0;
+      if (piece_size[static_cast<std::size_t>(p)] > 1) out.detached.push_back(static_cast<int>(i));
     }
   }
 

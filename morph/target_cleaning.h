@@ -52,6 +52,11 @@ struct CleaningOptions {
   /// faster than the points. Counted against the whole template, so a cloud that shows part
   /// of the body is thinned as if it showed all of it.
   double max_points_per_vertex = 8.0;
+  /// When small far pieces were dropped, MorphCarcass also morphs with them put back (a limb a
+  /// camera shadow cut off from the body lies apart as a hook does) and keeps that morph when
+  /// its check gives it some confidence and reads no worse on every sign (docs/decisions.md);
+  /// false: they stay out.
+  bool rejoin_detached = true;
 };
 
 /// What the cleaning took out.
@@ -61,6 +66,10 @@ struct CleaningSummary {
   int pieces_dropped = 0;  ///< how many such pieces
   int flat = 0;            ///< points dropped in flat pieces (floor, wall, backdrop)
   int flat_pieces = 0;     ///< how many such pieces
+  int rejoined = 0;        ///< points of small far pieces put back (MorphCarcass)
+  int rejoined_pieces = 0;          ///< how many such pieces
+  int tried_back = 0;               ///< points of small far pieces tried back, put back or not
+  double tried_back_seconds = 0.0;  ///< the second morph that tried them
   double spacing = 0.0;    ///< the cloud's median spacing as read, its units (0: not read)
   int stride = 1;          ///< every stride-th point of the input was read (max_points_per_vertex)
   double seconds = 0.0;
@@ -74,6 +83,9 @@ struct CleanedTarget {
   Eigen::Matrix3Xd points;   ///< the kept points, in their input order
   Eigen::Matrix3Xd normals;  ///< theirs, when normals were given (else empty)
   std::vector<int> kept;     ///< input column of each kept point
+  /// Input columns of the points in the small far pieces dropped (summary.detached of them;
+  /// lone points dropped so are strays, not here), ascending.
+  std::vector<int> detached;
   CleaningSummary summary;
 };
 

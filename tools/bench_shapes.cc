@@ -16,8 +16,10 @@
 #include <fstream>
 #include <map>
 #include <numbers>
+#include <numeric>
 #include <random>
 #include <stdexcept>
+#include <utility>
 
 #include "geometry/mesh_measures.h"
 #include "geometry/mesh_topology.h"
@@ -26,7 +28,6 @@
 #include "io/mesh_io.h"
 #include "io/read_limits.h"
 #include "morph/coarse_alignment.h"
-#include "morph/dense_alignment.h"
 #include "morph/feature_association.h"
 #include "morph/morph_carcass.h"
 #include "morph/template_model.h"
@@ -138,6 +139,35 @@ std::vector<int> ShadowBand(const Eigen::Matrix3Xd& points, const Eigen::Matrix3
   for (std::size_t k = 0; k < remove; ++k) gone[static_cast<std::size_t>(far_side[k])] = 1;
   for (Eigen::Index i = 0; i < points.cols(); ++i) {
     if (!gone[static_cast<std::size_t>(i)]) kept.push_back(static_cast<int>(i));
+  }
+  return kept;
+}
+
+// The severed variant: a camera shadow across a limb near its end that cuts the end off the
+// body. A random one of the 1 % of points farthest from the centroid is the end; every point
+// within 0.08 diagonals of the line from the centroid through it and between 0.07 and 0.14
+// diagonals back from the end along that line is gone. Returns the points kept.
+std::vector<int> SeveredEnd(const Eigen::Matrix3Xd& points, Random* random) {
+  const Eigen::Vector3d centre = points.rowwise().mean();
+  const double diagonal = (points.rowwise().maxCoeff() - points.rowwise().minCoeff()).norm();
+  std::vector<int> order(static_cast<std::size_t>(points.cols()));
+  std::iota(order.begin(), order.end(), 0);
+  const Eigen::VectorXd reach = (points.colwise() - centre).colwise().norm().transpose();
+  const auto farthest = std::max<std::size_t>(1, order.size() / 100);
+  std::partial_sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(farthest),
+                    order.end(),
+                    [&](int a, int b) { return std::pair(reach(a), a) > std::pair(reach(b), b); });
+  const auto pick = std::min(
+      farthest - 1, static_cast<std::size_t>(random->Uniform() * static_cast<double>(farthest)));
+  const Eigen::Vector3d end = points.col(order[pick]);
+  const Eigen::Vector3d axis = (end - centre).normalized();
+  std::vector<int> kept;
+  for (Eigen::Index i = 0; i < points.cols(); ++i) {
+    const Eigen::Vector3d d = end - points.col(i);
+    const double back = d.dot(axis);
+    const double aside = (d - back * axis).norm();
+    const bool gone = aside < 0.08 * diagonal && back > 0.07 * diagonal && back < 0.14 * diagonal;
+    if (!gone) kept.push_back(static_cast<int>(i));
   }
   return kept;
 }
@@ -328,8 +358,9 @@ std::filesystem::path PlotScript() {
 
 int RunShapeBench(const ShapeBenchOptions& options) {
   for (const std::string& v : options.variants) {
-    if (v != "clean" && v != "shadow" && v != "clutter") {
-      throw InputError("bench shapes: --variants: '" + v + "' is none of clean, shadow, clutter");
+    if (v != "clean" && v != "shadow" && v != "clutter" && v != "severed") {
+      throw InputError("bench shapes: --variants: '" + v +
+                       "' is none of clean, shadow, clutter, severed");
     }
   }
   if (!(options.shadow_fraction > 0 && options.shadow_fraction < 1)) {
@@ -420,6 +451,7 @@ int RunShapeBench(const ShapeBenchOptions& options) {
       const std::uint64_t seed = Fnv1a(c.name + "/" + target.pair) ^ (options.seed * 0x9e3779b97f4a7c15ull);
       Random placement_random(seed), sample_random(seed + 1), shadow_random(seed + 2);
       Random clutter_random(seed ^ 0xc1077e5ull);  // the noise's streams are seed + 3 onwards
+      Random severed_random(seed ^ 0x5e7e4edull);
       const Eigen::Isometry3d X = RandomPlacement(&placement_random);
       geometry::TriangleMesh placed = truth_mesh;
       placed.V = X * truth_mesh.V;
@@ -434,6 +466,7 @@ int RunShapeBench(const ShapeBenchOptions& options) {
       normals = (X.linear() * normals).eval();
       const std::vector<int> unshadowed = ShadowBand(clean_points, normals, options.shadow_fraction, &shadow_random);
       const Eigen::Matrix3Xd clutter = Clutter(clean_points, options.clutter_fraction, &clutter_random);
+      const std::vector<int> unsevered = SeveredEnd(clean_points, &severed_random);
       for (double sigma_mm : options.sigmas_mm) {
         Random noise_random(seed + 3 + static_cast<std::uint64_t>(std::lround(sigma_mm * 1000)));
         Eigen::Matrix3Xd noisy = clean_points;
@@ -441,7 +474,9 @@ int RunShapeBench(const ShapeBenchOptions& options) {
           noisy.col(i) += (sigma_mm / 1000.0 * noise_random.Normal()) * normals.col(i);
         }
         for (const std::string& variant : options.variants) {
-          Eigen::Matrix3Xd points = variant == "shadow" ? Select(noisy, unshadowed) : noisy;
+          Eigen::Matrix3Xd points = variant == "shadow"    ? Select(noisy, unshadowed)
+                                    : variant == "severed" ? Select(noisy, unsevered)
+                                                           : noisy;
           if (variant == "clutter") {
             points.conservativeResize(3, noisy.cols() + clutter.cols());
             points.rightCols(clutter.cols()) = clutter;
@@ -480,30 +515,33 @@ int RunShapeBench(const ShapeBenchOptions& options) {
           Row coarse_row = base, full_row = base;
           coarse_row.method = "coarse";
           full_row.method = "full";
-          // As MorphCarcass does: clutter out first, then the stages on the rest; the
-          // cleaning's time counts in the coarse stage's.
-          morph::CleanedTarget cleaned;
-          const morph::CoarseResult coarse = morph::CleanAndAlignCoarse(
-              model, points, Eigen::Matrix3Xd(), morph::MorphOptions{}, &pool, &cleaned);
-          coarse_row.seconds = cleaned.summary.seconds + coarse.total_seconds;
+          // The pipeline's own morph (clutter out, the stages on the rest, the whole-morph
+          // check), without cuts; the cleaning's time counts in the coarse stage's.
+          const morph::CarcassResult morphed =
+              morph::MorphCarcass(model, io::Annotations{}, points, Eigen::Matrix3Xd(), {}, &pool);
+          const morph::CoarseResult& coarse = morphed.coarse;
+          const morph::DenseResult& dense = morphed.dense;
+          coarse_row.seconds = morphed.cleaning.seconds + coarse.total_seconds;
           std::string error;
           if (coarse.ok) {
             Score(coarse.mesh.V, placed.V, rest, &coarse_row);
-            const morph::DenseResult dense = morph::AlignDense(model, coarse, cleaned.points, Eigen::Matrix3Xd(), {}, &pool);
-            full_row.seconds = coarse_row.seconds + dense.total_seconds;
+            full_row.seconds = morphed.seconds;
             if (dense.ok) {
               Score(dense.mesh.V, placed.V, rest, &full_row);
-              // What the pipeline would have made of it without the truth (not timed).
-              const morph::MorphCheck check =
-                  morph::CheckMorph(model, coarse, dense, morph::MorphOptions{}.check);
-              full_row.confidence = check.confidence;
-              full_row.ambiguity = check.ambiguity;
-              full_row.unexplained = check.unexplained;
-              full_row.reach = check.reach;
-              full_row.noise = check.noise;
-              full_row.reach_allowance = check.reach_allowance;
-              full_row.stretch = check.stretch;
-              full_row.size = check.size;
+              // What the pipeline made of it without the truth (when the check ran).
+              if (morphed.ok) {
+                const morph::MorphCheck& check = morphed.check;
+                full_row.confidence = check.confidence;
+                full_row.ambiguity = check.ambiguity;
+                full_row.unexplained = check.unexplained;
+                full_row.reach = check.reach;
+                full_row.noise = check.noise;
+                full_row.reach_allowance = check.reach_allowance;
+                full_row.stretch = check.stretch;
+                full_row.size = check.size;
+              } else {
+                error = morphed.error;
+              }
               if (t == 0 && variant == options.variants.front() &&
                   sigma_mm == options.sigmas_mm[options.sigmas_mm.size() / 2]) {
                 WriteXyz(examples / (c.name + "_target.xyz"), points);
@@ -513,10 +551,10 @@ int RunShapeBench(const ShapeBenchOptions& options) {
                          (dense.mesh.V - placed.V).colwise().norm().transpose() / TrueSize(rest, placed.V));
               }
             } else {
-              error = "full: " + dense.error;
+              error = morphed.error;
             }
           } else {
-            error = "coarse: " + coarse.error;
+            error = morphed.error;
           }
           ++done;
           std::fprintf(stderr,

@@ -303,6 +303,13 @@ int RunMorphCommand(const MorphCommandOptions& options) {
         "flat pieces (a floor, a wall; median spacing %.1f mm, %.3f s)\n",
         cleaning.strays, cleaning.detached, cleaning.pieces_dropped, cleaning.flat,
         cleaning.flat_pieces, 1000 * cleaning.spacing, cleaning.seconds);
+    if (cleaning.tried_back > 0)
+      std::printf("morph: the %d points of the detached pieces tried back (%.3f s): %s\n",
+                  cleaning.tried_back, cleaning.tried_back_seconds,
+                  cleaning.rejoined > 0
+                      ? "put back, the check reading no worse with them (a limb a "
+                        "shadow cut off)"
+                      : "left out, the check reading worse with them");
   }
   if (full) {
     // A cloud denser than its noise is used at every n-th point (DenseOptions::thin_to_noise)

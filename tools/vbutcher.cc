@@ -305,8 +305,10 @@ int main(int argc, char** argv) {
   shape_bench_cmd->add_option("--sigmas-mm", shape_bench.sigmas_mm, "Noise along normals, at a 1.7 m body")
       ->delimiter(',')
       ->capture_default_str();
-  shape_bench_cmd->add_option("--variants", shape_bench.variants,
-                              "clean, shadow (a camera shadow), clutter (stray points added)")
+  shape_bench_cmd
+      ->add_option("--variants", shape_bench.variants,
+                   "clean, shadow (a camera shadow), clutter (stray points added), severed (a "
+                   "limb's end cut off by a shadow; not by default)")
       ->delimiter(',')
       ->capture_default_str();
   shape_bench_cmd

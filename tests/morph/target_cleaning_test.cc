@@ -77,6 +77,7 @@ TEST(CleanTargetTest, DropsStrayPointsAndKeepsTheBody) {
   // strays too.
   EXPECT_GE(c.summary.strays, far);
   EXPECT_EQ(c.summary.detached, 0);
+  EXPECT_TRUE(c.detached.empty());  // lone points dropped as far pieces are not listed
   EXPECT_EQ(c.points.cols(), cloud.cols() - c.summary.strays - c.summary.detached);
 }
 
@@ -93,12 +94,17 @@ TEST(CleanTargetTest, DropsASmallFarPieceAndKeepsNearOrLargeOnes) {
   EXPECT_EQ(far.summary.pieces_dropped, 1);
   EXPECT_EQ(far.summary.detached, 300);
   EXPECT_EQ(far.points.cols(), body.cols());
+  // Its columns are listed, for the morph to try it back.
+  ASSERT_EQ(far.detached.size(), 300u);
+  for (std::size_t k = 0; k < far.detached.size(); ++k)
+    ASSERT_EQ(far.detached[k], static_cast<int>(body.cols() + k));
 
   // The same piece 0.06 m from the body: part of it (a limb a shadow cut off).
   const CleanedTarget near =
       CleanTarget(Join(body, Sphere(300, 0.05, Eigen::Vector3d(0, 0, 0.61))), {}, options);
   EXPECT_EQ(near.summary.detached, 0);
   EXPECT_EQ(near.points.cols(), body.cols() + 300);
+  EXPECT_TRUE(near.detached.empty());
 
   // A small piece far from the body but beside a second, smaller large piece: kept, as the
   // gap is measured to every piece that is not small.
@@ -285,6 +291,9 @@ TEST(CleanTargetTest, ReadsACloudFarDenserThanTheTemplateAtEveryNthPoint) {
   // 9,300 points against 8 x 500: every 3rd.
   EXPECT_EQ(c.summary.stride, 3);
   EXPECT_EQ(c.summary.detached, 100);  // the small far piece, as read
+  ASSERT_EQ(c.detached.size(), 100u);  // in the cloud's columns
+  for (std::size_t k = 0; k < c.detached.size(); ++k)
+    ASSERT_EQ(c.detached[k], 9000 + 3 * static_cast<int>(k));
   ASSERT_EQ(c.points.cols(), 3000);
   ASSERT_EQ(c.kept.size(), 3000u);
   for (std::size_t k = 0; k < c.kept.size(); ++k) ASSERT_EQ(c.kept[k], 3 * static_cast<int>(k));
