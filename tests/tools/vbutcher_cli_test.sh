@@ -194,6 +194,37 @@ PY
 check "morph refuses an unknown unit" 2 "target-units" \
   "$vbutcher" morph --template "$work/set/template.ply" --target "$work/millimetres.ply" --out "$work/mm.ply" \
   --target-units km
+# A hook apart from the carcass (300 points on a 4 cm ball 0.25 m above its top): left out,
+# tried back with a second morph, and left out again; the morph line and the report say so.
+/usr/bin/python3 - "$work/set/target_001_cloud.ply" "$work/hook.ply" <<'PY'
+import math, struct, sys
+data = open(sys.argv[1], "rb").read()
+head, body = data.split(b"end_header\n", 1)
+lines = head.decode().splitlines()
+count = int([l for l in lines if l.startswith("element vertex")][0].split()[2])
+stride = 8 * len([l for l in lines if l.startswith("property")])
+pts = [struct.unpack("<3d", body[i * stride:i * stride + 24]) for i in range(count)]
+top = max(pts, key=lambda p: p[2])
+for i in range(300):
+    z = 1 - 2 * (i + 0.5) / 300; r = math.sqrt(1 - z * z); a = 2.4 * i
+    pts.append((top[0] + 0.04 * r * math.cos(a), top[1] + 0.04 * r * math.sin(a), top[2] + 0.25 + 0.04 * z))
+with open(sys.argv[2], "w") as out:
+    out.write("ply\nformat ascii 1.0\nelement vertex %d\n" % len(pts))
+    out.write("property float x\nproperty float y\nproperty float z\nend_header\n")
+    out.writelines("%.6f %.6f %.6f\n" % p for p in pts)
+PY
+check "morph tries a hook apart back and leaves it out" 0 \
+  "the 300 points of the detached pieces tried back ([0-9.]* s): left out" \
+  "$vbutcher" morph --template "$work/set/template.ply" --target "$work/hook.ply" --out "$work/h.ply" \
+  --report "$work/hr.json"
+/usr/bin/python3 - "$work/hr.json" <<'PY' || failures=$((failures + 1))
+import json, sys
+c = json.load(open(sys.argv[1]))["cleaning"]
+got = (c["detached"], c["pieces_dropped"], c["tried_back"], c["rejoined"])
+if got != (300, 1, 300, 0) or not c["tried_back_seconds"] > 0:
+    sys.exit(f"FAIL: report cleaning {c}")
+print("ok: the report says the hook was tried back and left out")
+PY
 # A cloud much denser than its noise: the morph reads and uses it at every n-th point.
 check "synth writes a dense noisy cloud" 0 "template:" "$vbutcher" synth --out "$work/dense" --count 1 \
   --seed 5 --sigma-mm 16 --cloud --cloud-points 80000
