@@ -33,6 +33,7 @@ const std::array kKeys = {
     VB_PROFILE_KEY(clean.far_piece, "diagonals", 0.0, 1.0, false, "clutter: ...and this far from it is dropped"),
     VB_PROFILE_KEY(clean.flat_thickness, kFraction, 0.0, 1.0, false, "clutter: a piece this thin across its plane against its spread along it is flat (0: off)..."),
     VB_PROFILE_KEY(clean.flat_width, "diagonals", 0.0, 10.0, false, "clutter: ...and, this wide against the body's diagonal, reaching out around it with it on one side, a floor or wall: dropped"),
+    VB_PROFILE_KEY(clean.touching_planes, kCount, 0, 10, false, "clutter: at most this many planes the body touches (a floor, a wall), wide, flat, reaching round it: dropped with the touching cap (0: off)"),
     VB_PROFILE_KEY(clean.rejoin_detached, "0 or 1", 0, 1, false, "clutter: also morph with the small far pieces put back, kept if its check trusts it and reads no worse"),
     VB_PROFILE_KEY(clean.max_points_per_vertex, "points per vertex", 0.0, 1e6, false, "a cloud of more points per template vertex is read at every n-th point (0: off)"),
     VB_PROFILE_KEY(coarse.skeleton.voxel, kSize, 0.001, 0.1, false, "target skeleton: downsampling cell"),

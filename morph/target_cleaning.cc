@@ -153,6 +153,241 @@ void DropFlatPieces(const Eigen::Matrix3Xd& points, const CleaningOptions& optio
   }
 }
 
+// A plane found among the kept points: its centre and unit normal, and the band about it
+// (its points' distance limit).
+struct Plane {
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero(), normal = Eigen::Vector3d::UnitZ();
+  double band = 0.0;
+  long count = 0;  // sample points within the band
+};
+
+// The centroid and principal axes of the columns @p columns of @p points, from sums about the
+// first of them (so coordinates far from the origin lose no precision); eigenvalues ascending.
+template <typename Columns>
+Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> Principal(const Eigen::Matrix3Xd& points,
+                                                         const Columns& columns,
+                                                         Eigen::Vector3d* centre) {
+  const Eigen::Vector3d origin = points.col(*columns.begin());
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+  double count = 0.0;
+  for (const auto i : columns) {
+    const Eigen::Vector3d x = points.col(i) - origin;
+    sum += x;
+    outer += x * x.transpose();
+    count += 1.0;
+  }
+  const Eigen::Vector3d mean = sum / count;
+  *centre = origin + mean;
+  return Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(outer / count - mean * mean.transpose());
+}
+
+// Planes the body touches: a floor it rests on, a wall it leans on, joined to it in one piece
+// (DropFlatPieces finds those apart). A plane is started at each of kSeeds points spread over
+// the kept points (the best plane of its kSeedNeighbours nearest) and refitted to a sample of
+// at most kSample of them within its band, three times their deviation across it (at least two
+// spacings; a band that grows to the link limit is a curved surface, not a plane). The plane
+// holding most of the sample is judged by DropFlatPieces' tests (thin against its width, wide
+// against the body's diagonal, the body on one side, half its points out of the body's
+// shadow), and as a sheet: on a grid of link-limit cells over it, at least half the cells
+// holding its points have all 8 neighbours holding its points or under the body's shadow (a
+// spider's legs spread in one plane are strips), and the centre of the body's shadow lies in
+// the box of the cells reached from those inner cells through cells holding its points (a
+// floor reaches round the body; a flat flap of it lies beside it). A plane that passes goes:
+// its points in the reached cells (with the body's touching cap, when it is reached), and the
+// points within twice the band out of the body's shadow there (its noise's stragglers). It is
+// counted as a flat piece, and the search runs again, up to options.touching_planes times,
+// stopping at the first plane that fails.
+void DropTouchingPlanes(const Eigen::Matrix3Xd& points, const PointIndex& index,
+                        const CleaningOptions& options, double spacing, double link_limit,
+                        std::vector<char>* keep, CleaningSummary* summary) {
+  if (options.touching_planes <= 0 || !(options.flat_thickness > 0.0)) return;
+  constexpr Eigen::Index kSample = 1024;  // points the planes are fitted and scored on
+  constexpr int kSeeds = 64;
+  constexpr int kSeedNeighbours = 32;
+  constexpr int kRefits = 6;
+  constexpr double kOtherSide = 0.01;  // of the body's points, on a floor's other side
+  const double min_band = 2.0 * spacing;
+  constexpr double kCells = 256.0;
+  std::vector<int> kept_columns, plane_columns, body_columns, found;
+  std::vector<char> grid;
+  std::vector<std::pair<int, int>> flood;
+  std::vector<double> squared;
+  for (int round = 0; round < options.touching_planes; ++round) {
+    kept_columns.clear();
+    for (Eigen::Index i = 0; i < points.cols(); ++i)
+      if ((*keep)[static_cast<std::size_t>(i)]) kept_columns.push_back(static_cast<int>(i));
+    const auto kept = static_cast<Eigen::Index>(kept_columns.size());
+    if (kept < 4 * kSeedNeighbours) return;
+    const Eigen::Index stride = (kept + kSample - 1) / kSample;
+    Eigen::Matrix3Xd sample(3, (kept + stride - 1) / stride);
+    for (Eigen::Index k = 0; k < sample.cols(); ++k)
+      sample.col(k) = points.col(kept_columns[static_cast<std::size_t>(k * stride)]);
+    Plane best;
+    std::vector<Eigen::Index> inside;
+    for (int s = 0; s < kSeeds; ++s) {
+      const Eigen::Vector3d seed = sample.col(sample.cols() * s / kSeeds);
+      index.Nearest(seed, kSeedNeighbours, &found, &squared);
+      std::erase_if(found, [&](int i) { return !(*keep)[static_cast<std::size_t>(i)]; });
+      if (found.size() < 3) continue;
+      Plane plane;
+      plane.normal = Principal(points, found, &plane.centre).eigenvectors().col(0);
+      plane.band = min_band;
+      bool curved = false;
+      for (int refit = 0; refit <= kRefits && !curved; ++refit) {
+        inside.clear();
+        for (Eigen::Index k = 0; k < sample.cols(); ++k)
+          if (std::abs(plane.normal.dot(sample.col(k) - plane.centre)) <= plane.band)
+            inside.push_back(k);
+        plane.count = static_cast<long>(inside.size());
+        if (refit == kRefits || inside.size() < 3) break;
+        const auto eigen = Principal(sample, inside, &plane.centre);
+        plane.normal = eigen.eigenvectors().col(0);
+        const double band = 3.0 * std::sqrt(std::max(0.0, eigen.eigenvalues()(0)));
+        curved = band >= link_limit;
+        plane.band = std::clamp(band, min_band, link_limit);
+      }
+      if (!curved && plane.count > best.count) best = plane;
+    }
+    if (best.count < 3) return;
+    // The plane's kept points and the body's (the rest), over the whole cloud.
+    plane_columns.clear();
+    body_columns.clear();
+    for (const int i : kept_columns)
+      (std::abs(best.normal.dot(points.col(i) - best.centre)) <= best.band ? plane_columns
+                                                                           : body_columns)
+          .push_back(i);
+    if (plane_columns.size() < 3 || body_columns.empty()) return;
+    Eigen::Vector3d centre;
+    const auto eigen = Principal(points, plane_columns, &centre);
+    const Eigen::Vector3d spread = eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt();
+    const Eigen::Vector3d normal = eigen.eigenvectors().col(0);
+    const Eigen::Vector3d along = eigen.eigenvectors().col(1);
+    const Eigen::Vector3d other = normal.cross(along);
+    if (spread(0) > options.flat_thickness * spread(1)) return;
+    const Eigen::Matrix3Xd body = points(Eigen::all, body_columns);
+    if (std::sqrt(12.0) * spread(1) < options.flat_width * geometry::BoundingBoxDiagonal(body))
+      return;
+    const Eigen::ArrayXd side =
+        (normal.transpose() * (body.colwise() - centre)).transpose().array();
+    const long above = (side > 3.0 * spread(0)).count();
+    const long below = (side < -3.0 * spread(0)).count();
+    if (static_cast<double>(std::min(above, below)) > kOtherSide * static_cast<double>(body.cols()))
+      return;
+    // The body's shadow on the plane, in the plane's axes about its centre: of its points
+    // beyond twice the band, since the plane's own noise leaves a few of its points (0.3 % at
+    // three deviations) just beyond it, scattered over its whole width.
+    std::vector<Eigen::Index> clear;
+    for (Eigen::Index b = 0; b < body.cols(); ++b)
+      if (std::abs(side(b)) > 2.0 * best.band) clear.push_back(b);
+    if (clear.empty()) return;
+    Eigen::Matrix3Xd shadow = Eigen::Matrix3Xd::Zero(3, static_cast<Eigen::Index>(clear.size()));
+    shadow.row(0) = along.transpose() * (body(Eigen::all, clear).colwise() - centre);
+    shadow.row(1) = other.transpose() * (body(Eigen::all, clear).colwise() - centre);
+    const Eigen::Vector2d shadow_centre = shadow.topRows<2>().rowwise().mean();
+    // The extent of its points out of the body's shadow (the touching cap is in the band too).
+    Eigen::Vector2d low = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
+    Eigen::Vector2d high = -low;
+    long outside = 0;
+    const PointIndex shadow_index(shadow);
+    for (const int i : plane_columns) {
+      const Eigen::Vector3d x(along.dot(points.col(i) - centre), other.dot(points.col(i) - centre),
+                              0.0);
+      if ((shadow.col(shadow_index.Nearest(x)) - x).norm() <= link_limit) continue;
+      ++outside;
+      low = low.cwiseMin(x.head<2>());
+      high = high.cwiseMax(x.head<2>());
+    }
+    if (2 * outside < static_cast<long>(plane_columns.size())) return;
+    // A floor is a sheet: at least half the cells of a grid over it (link-limit cells, at most
+    // kCells a side) that hold its points have all 8 neighbours holding its points or under
+    // the body's shadow (what the body hides of it). Limbs spread flat in one plane (a
+    // spider's legs) are strips a cell or two wide, with few such cells.
+    const double cell = std::max(link_limit, (high - low).maxCoeff() / kCells);
+    const Eigen::Array2i cells = ((high - low) / cell).array().cast<int>() + 1;
+    grid.assign(static_cast<std::size_t>(cells(0)) * static_cast<std::size_t>(cells(1)), 0);
+    const auto at = [&](int u, int v) -> char& {
+      return grid[static_cast<std::size_t>(v) * static_cast<std::size_t>(cells(0)) +
+                  static_cast<std::size_t>(u)];
+    };
+    const auto mark = [&](const Eigen::Vector2d& x, char bit) {
+      const Eigen::Array2i c = ((x - low) / cell).array().floor().cast<int>();
+      if ((c >= 0).all() && (c < cells).all()) at(c(0), c(1)) |= bit;
+    };
+    for (const int i : plane_columns)
+      mark(Eigen::Vector2d(along.dot(points.col(i) - centre), other.dot(points.col(i) - centre)),
+           1);
+    for (Eigen::Index b = 0; b < shadow.cols(); ++b) mark(shadow.col(b).head<2>(), 2);
+    long holding = 0, inner = 0;
+    flood.clear();
+    for (int v = 0; v < cells(1); ++v)
+      for (int u = 0; u < cells(0); ++u) {
+        if (!(at(u, v) & 1)) continue;
+        ++holding;
+        bool surrounded = u > 0 && v > 0 && u + 1 < cells(0) && v + 1 < cells(1);
+        for (int dv = -1; dv <= 1 && surrounded; ++dv)
+          for (int du = -1; du <= 1 && surrounded; ++du) surrounded = at(u + du, v + dv) != 0;
+        if (!surrounded) continue;
+        ++inner;
+        flood.emplace_back(u, v);
+      }
+    if (2 * inner < holding || inner == 0) return;
+    // The sheet: the cells holding its points reached from its inner cells through cells that
+    // hold its points (a limb crossing its plane beyond its edge, or the body's touching cap
+    // under its shadow, is not reached).
+    constexpr char kSheet = 4;
+    for (const auto& [u, v] : flood) at(u, v) |= kSheet;
+    while (!flood.empty()) {
+      const auto [u, v] = flood.back();
+      flood.pop_back();
+      for (int dv = -1; dv <= 1; ++dv)
+        for (int du = -1; du <= 1; ++du) {
+          const int x = u + du, y = v + dv;
+          if (x < 0 || y < 0 || x >= cells(0) || y >= cells(1) || (at(x, y) & kSheet) ||
+              !(at(x, y) & 1))
+            continue;
+          at(x, y) |= kSheet;
+          flood.emplace_back(x, y);
+        }
+    }
+    // A floor reaches round the body: the centre of the body's shadow lies within the sheet's
+    // box (a flat flap of the body, a wing, lies beside the body's shadow).
+    Eigen::Array2d sheet_low = Eigen::Array2d::Constant(std::numeric_limits<double>::infinity());
+    Eigen::Array2d sheet_high = -sheet_low;
+    for (int v = 0; v < cells(1); ++v)
+      for (int u = 0; u < cells(0); ++u) {
+        if (!(at(u, v) & kSheet)) continue;
+        sheet_low = sheet_low.min(low.array() + cell * Eigen::Array2d(u, v));
+        sheet_high = sheet_high.max(low.array() + cell * Eigen::Array2d(u + 1, v + 1));
+      }
+    if ((shadow_centre.array() < sheet_low).any() || (shadow_centre.array() > sheet_high).any())
+      return;
+    // It goes with its points in the sheet, and the stragglers its noise left just beyond the
+    // band, out on the sheet away from the body's shadow (else each is a piece of its own,
+    // apart from the body).
+    const auto on_it = [&](const Eigen::Vector3d& p) {
+      const Eigen::Vector2d x(along.dot(p - centre), other.dot(p - centre));
+      const Eigen::Array2i c = ((x - low) / cell).array().floor().cast<int>();
+      return (c >= 0).all() && (c < cells).all() && (at(c(0), c(1)) & kSheet);
+    };
+    int taken = 0;
+    for (const int i : plane_columns) {
+      if (!on_it(points.col(i))) continue;
+      (*keep)[static_cast<std::size_t>(i)] = 0;
+      ++taken;
+    }
+    for (Eigen::Index b = 0; b < body.cols(); ++b) {
+      if (std::abs(side(b)) > 2.0 * best.band || !on_it(body.col(b))) continue;
+      const Eigen::Vector3d x(along.dot(body.col(b) - centre), other.dot(body.col(b) - centre),
+                              0.0);
+      if ((shadow.col(shadow_index.Nearest(x)) - x).norm() <= link_limit) continue;
+      (*keep)[static_cast<std::size_t>(body_columns[static_cast<std::size_t>(b)])] = 0;
+      ++taken;
+    }
+    summary->flat += taken;
+    ++summary->flat_pieces;
+  }
+}
 }  // namespace
 
 CleanedTarget CleanTarget(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
@@ -163,8 +398,8 @@ CleanedTarget CleanTarget(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd
   VB_DEMAND(normals.cols() == 0 || normals.cols() == points.cols());
   VB_DEMAND(options.neighbours >= 0 && options.stray_spacings > 0 && options.link_spacings > 0 &&
             options.small_piece >= 0 && options.far_piece >= 0 && options.flat_thickness >= 0 &&
-            options.flat_width >= 0 && options.max_points_per_vertex >= 0 &&
-            template_vertices >= 0);
+            options.flat_width >= 0 && options.touching_planes >= 0 &&
+            options.max_points_per_vertex >= 0 && template_vertices >= 0);
   const Eigen::Index n = points.cols();
   // Far denser than the template: every stride-th point, then cleaned as a cloud of its own.
   const double cap = options.max_points_per_vertex * static_cast<double>(template_vertices);
@@ -244,11 +479,15 @@ CleanedTarget CleanTarget(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd
     }
   }
 
+  // A floor or wall the body touches, in one piece with it, first: the pieces are then found
+  // without it.
+  const double link_limit = options.link_spacings * out.summary.spacing;
+  DropTouchingPlanes(points, index, options, out.summary.spacing, link_limit, &keep, &out.summary);
+
   // Pieces, by DBSCAN's rule (radius link_spacings, k neighbours): a core point has all its k
   // neighbours within the link limit, and core points within it of each other are one piece.
   // Every other kept point joins the piece of its nearest core neighbour within the limit, or
   // stands alone, so a sparse point between two pieces (a stray near both) cannot join them.
-  const double link_limit = options.link_spacings * out.summary.spacing;
   std::vector<char> core(static_cast<std::size_t>(n), 0);
   for (Eigen::Index i = 0; i < n; ++i)
     core[static_cast<std::size_t>(i)] =

@@ -43,9 +43,16 @@ struct CleaningOptions {
   /// outline, lies under it and stays). Such a piece goes whatever its size and is never taken
   /// for the body, unless two such pieces lie in parallel planes apart: rows of a line scanner
   /// the neighbour graph could not join, and none goes. A flat part joined to the body is in
-  /// the body's piece. 0 turns the rule off; a floor the body touches is not found by it.
+  /// the body's piece (touching_planes). 0 turns the rule off.
   double flat_thickness = 0.1;
   double flat_width = 0.25;
+  /// A floor or wall the body touches, joined to it in one piece (found before the pieces):
+  /// at most this many planes found among the points and taken out when they pass the flat
+  /// pieces' tests, are a sheet (not limbs spread flat in one plane) and reach round the
+  /// centre of the body's shadow (a flat flap of the body lies beside it); the body's touching
+  /// cap goes with them where it joins the sheet. The plane's band is three deviations of its
+  /// points (at least two spacings). 0: off.
+  int touching_planes = 3;
   /// A cloud of more points than this many per template vertex is read at every n-th point
   /// (in its column order), the smallest n that brings it within the cap; 0: never. The
   /// surface morph resolves no finer than the template's vertices, and the morph's time grows

@@ -30,6 +30,7 @@
 #include "morph/coarse_alignment.h"
 #include "morph/feature_association.h"
 #include "morph/morph_carcass.h"
+#include "morph/point_index.h"
 #include "morph/template_model.h"
 #include "perception/carcass_generator.h"
 #include "tools/bench_stats.h"
@@ -170,6 +171,49 @@ std::vector<int> SeveredEnd(const Eigen::Matrix3Xd& points, Random* random) {
     if (!gone) kept.push_back(static_cast<int>(i));
   }
   return kept;
+}
+
+// The floor variant: a floor the body rests on, in one piece with it, as a scan off the line
+// (a carcass on a table, a body on the ground) takes it in. The plane is square to a random
+// direction and touches the body at its farthest point along it; its points lie on a square
+// grid, a body's diagonal a side, centred under the body's centroid, of as many points as the
+// cloud holds, less those under the body where the body lies more than 0.02 diagonals above
+// the plane (what it hides from a camera above).
+// @p normal receives the plane's unit normal, pointing from the body.
+Eigen::Matrix3Xd RestingFloor(const Eigen::Matrix3Xd& points, Random* random,
+                              Eigen::Vector3d* normal) {
+  const double diagonal = (points.rowwise().maxCoeff() - points.rowwise().minCoeff()).norm();
+  const Eigen::Vector3d down = random->NormalVector().normalized();
+  *normal = down;
+  const double level = (down.transpose() * points).maxCoeff();
+  // Axes in the plane, and the body's points well above it, projected onto it.
+  const Eigen::Vector3d u = down.unitOrthogonal();
+  const Eigen::Vector3d v = down.cross(u);
+  std::vector<int> raised;
+  for (Eigen::Index i = 0; i < points.cols(); ++i)
+    if (level - down.dot(points.col(i)) > 0.02 * diagonal) raised.push_back(static_cast<int>(i));
+  Eigen::Matrix3Xd footprint = Eigen::Matrix3Xd::Zero(3, static_cast<Eigen::Index>(raised.size()));
+  for (std::size_t k = 0; k < raised.size(); ++k) {
+    footprint(0, static_cast<Eigen::Index>(k)) = u.dot(points.col(raised[k]));
+    footprint(1, static_cast<Eigen::Index>(k)) = v.dot(points.col(raised[k]));
+  }
+  const auto per_side =
+      std::max(2, static_cast<int>(std::lround(std::sqrt(static_cast<double>(points.cols())))));
+  const double step = diagonal / per_side;
+  const Eigen::Vector3d centre = points.rowwise().mean();
+  const double cu = u.dot(centre), cv = v.dot(centre);
+  const morph::PointIndex under(footprint);
+  std::vector<Eigen::Vector3d> floor;
+  for (int i = 0; i < per_side; ++i)
+    for (int j = 0; j < per_side; ++j) {
+      const double a = cu + step * (i - 0.5 * per_side), b = cv + step * (j - 0.5 * per_side);
+      const Eigen::Vector3d flat(a, b, 0.0);
+      if (!raised.empty() && (footprint.col(under.Nearest(flat)) - flat).norm() < step) continue;
+      floor.push_back(a * u + b * v + level * down);
+    }
+  Eigen::Matrix3Xd out(3, static_cast<Eigen::Index>(floor.size()));
+  for (std::size_t k = 0; k < floor.size(); ++k) out.col(static_cast<Eigen::Index>(k)) = floor[k];
+  return out;
 }
 
 // The clutter variant's stray points, as a real scan has them besides the body: half
@@ -358,9 +402,9 @@ std::filesystem::path PlotScript() {
 
 int RunShapeBench(const ShapeBenchOptions& options) {
   for (const std::string& v : options.variants) {
-    if (v != "clean" && v != "shadow" && v != "clutter" && v != "severed") {
+    if (v != "clean" && v != "shadow" && v != "clutter" && v != "severed" && v != "floor") {
       throw InputError("bench shapes: --variants: '" + v +
-                       "' is none of clean, shadow, clutter, severed");
+                       "' is none of clean, shadow, clutter, severed, floor");
     }
   }
   if (!(options.shadow_fraction > 0 && options.shadow_fraction < 1)) {
@@ -452,6 +496,7 @@ int RunShapeBench(const ShapeBenchOptions& options) {
       Random placement_random(seed), sample_random(seed + 1), shadow_random(seed + 2);
       Random clutter_random(seed ^ 0xc1077e5ull);  // the noise's streams are seed + 3 onwards
       Random severed_random(seed ^ 0x5e7e4edull);
+      Random floor_random(seed ^ 0xf1002ull);
       const Eigen::Isometry3d X = RandomPlacement(&placement_random);
       geometry::TriangleMesh placed = truth_mesh;
       placed.V = X * truth_mesh.V;
@@ -467,6 +512,12 @@ int RunShapeBench(const ShapeBenchOptions& options) {
       const std::vector<int> unshadowed = ShadowBand(clean_points, normals, options.shadow_fraction, &shadow_random);
       const Eigen::Matrix3Xd clutter = Clutter(clean_points, options.clutter_fraction, &clutter_random);
       const std::vector<int> unsevered = SeveredEnd(clean_points, &severed_random);
+      Eigen::Vector3d floor_normal = Eigen::Vector3d::UnitZ();
+      const bool with_floor = std::find(options.variants.begin(), options.variants.end(),
+                                        "floor") != options.variants.end();
+      const Eigen::Matrix3Xd floor = with_floor
+                                         ? RestingFloor(clean_points, &floor_random, &floor_normal)
+                                         : Eigen::Matrix3Xd();
       for (double sigma_mm : options.sigmas_mm) {
         Random noise_random(seed + 3 + static_cast<std::uint64_t>(std::lround(sigma_mm * 1000)));
         Eigen::Matrix3Xd noisy = clean_points;
@@ -480,6 +531,15 @@ int RunShapeBench(const ShapeBenchOptions& options) {
           if (variant == "clutter") {
             points.conservativeResize(3, noisy.cols() + clutter.cols());
             points.rightCols(clutter.cols()) = clutter;
+          }
+          if (variant == "floor") {
+            // The floor as noisy as the body, from a stream of its own.
+            Random floor_noise(
+                seed ^ (0xf1003ull + static_cast<std::uint64_t>(std::lround(sigma_mm * 1000))));
+            points.conservativeResize(3, noisy.cols() + floor.cols());
+            for (Eigen::Index i = 0; i < floor.cols(); ++i)
+              points.col(noisy.cols() + i) =
+                  floor.col(i) + (sigma_mm / 1000.0 * floor_noise.Normal()) * floor_normal;
           }
           Row base;
           base.shape = c.name;

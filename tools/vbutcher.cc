@@ -308,7 +308,8 @@ int main(int argc, char** argv) {
   shape_bench_cmd
       ->add_option("--variants", shape_bench.variants,
                    "clean, shadow (a camera shadow), clutter (stray points added), severed (a "
-                   "limb's end cut off by a shadow; not by default)")
+                   "limb's end cut off by a shadow; not by default), floor (a floor the body "
+                   "rests on; not by default)")
       ->delimiter(',')
       ->capture_default_str();
   shape_bench_cmd

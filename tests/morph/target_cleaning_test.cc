@@ -168,9 +168,30 @@ TEST(CleanTargetTest, DropsAFloorAndAWallLargerThanTheBody) {
   for (Eigen::Index i = 0; i < leg.cols(); ++i) below += leg(2, i) < -1.02;
   ASSERT_GT(below, 0);
   ASSERT_LT(below, 0.01 * limbed.cols());
-  const CleanedTarget reaching = CleanTarget(Join(limbed, floor), {});
+  CleaningOptions pieces_only;  // the flat-piece rule alone
+  pieces_only.touching_planes = 0;
+  const CleanedTarget reaching = CleanTarget(Join(limbed, floor), {}, pieces_only);
   EXPECT_EQ(reaching.summary.flat, floor.cols());
   EXPECT_EQ(reaching.points, limbed);
+  // The plane search finds the floor first and takes with it the leg's points in its band
+  // near its edge (within two of its grid's cells, of the link limit's size) and the
+  // stragglers just beyond the band: measured 14 of the leg's 75. The leg's points farther
+  // from the floor's plane stay.
+  const Eigen::Matrix3Xd scene = Join(limbed, floor);
+  const CleanedTarget planed = CleanTarget(scene, {});
+  EXPECT_EQ(planed.summary.flat_pieces, 1);
+  for (Eigen::Index i = limbed.cols(); i < scene.cols(); ++i)
+    ASSERT_FALSE(Kept(planed, static_cast<int>(i))) << "floor point " << i;
+  int leg_kept = 0;
+  for (Eigen::Index i = 0; i < leg.cols(); ++i) {
+    const int column = static_cast<int>(body.cols() + i);
+    leg_kept += Kept(planed, column);
+    if (std::abs(leg(2, i) + 1.0) > 0.12) {
+      ASSERT_TRUE(Kept(planed, column)) << "leg point " << i;
+    }
+  }
+  EXPECT_GE(leg_kept, 61);
+  for (Eigen::Index i = 0; i < body.cols(); ++i) ASSERT_TRUE(Kept(planed, static_cast<int>(i)));
 
   // With the rule off, the floor is the largest piece and nothing is dropped.
   CleaningOptions off;
@@ -178,6 +199,65 @@ TEST(CleanTargetTest, DropsAFloorAndAWallLargerThanTheBody) {
   const CleanedTarget kept = CleanTarget(cloud, {}, off);
   EXPECT_EQ(Removed(kept.summary), 0);
   EXPECT_EQ(kept.points.cols(), cloud.cols());
+}
+
+// A ball resting on a floor and against a wall, each joined to it where it touches (the floor
+// hidden under the ball where the ball is more than 3 cm above it, the wall behind it alike):
+// both planes go, with the ball's touching caps, and the rest of the ball stays. A flap in the
+// floor's plane touching the ball's bottom and reaching out to one side, in one piece with it,
+// is flat, wide, out of the ball's shadow and has the ball on one side, but the centre of the
+// ball's shadow lies outside it (a wing beside a body, not a floor under it): it stays.
+TEST(CleanTargetTest, DropsAFloorAndAWallTheBodyTouches) {
+  const Eigen::Matrix3Xd ball = Sphere(6000, 0.5, Eigen::Vector3d::Zero());
+  const auto hidden_behind_ball = [](const Eigen::Matrix3Xd& sheet, int across) {
+    std::vector<int> seen;
+    for (Eigen::Index i = 0; i < sheet.cols(); ++i) {
+      const double r = std::hypot(sheet((across + 1) % 3, i), sheet((across + 2) % 3, i));
+      const double gap = r < 0.5 ? 0.5 - std::sqrt(0.25 - r * r) : 1.0;
+      if (gap <= 0.03 || r >= 0.5) seen.push_back(static_cast<int>(i));
+    }
+    return Eigen::Matrix3Xd(sheet(Eigen::all, seen));
+  };
+  const Eigen::Matrix3Xd floor =
+      hidden_behind_ball(Sheet(120, 2.4, Eigen::Vector3d(0, 0, -0.5), 2, 0.004), 2);
+  Eigen::Matrix3Xd wall =
+      hidden_behind_ball(Sheet(100, 2.0, Eigen::Vector3d(0, 0.5, 0.5), 1, 0.004), 1);
+  std::vector<int> above_floor;
+  for (Eigen::Index i = 0; i < wall.cols(); ++i)
+    if (wall(2, i) > -0.5) above_floor.push_back(static_cast<int>(i));
+  wall = Eigen::Matrix3Xd(wall(Eigen::all, above_floor));
+  const Eigen::Matrix3Xd scene = Join(Join(ball, floor), wall);
+  const CleanedTarget c = CleanTarget(scene, {});
+  EXPECT_EQ(c.summary.flat_pieces, 2);
+  for (Eigen::Index i = ball.cols(); i < scene.cols(); ++i)
+    ASSERT_FALSE(Kept(c, static_cast<int>(i))) << "floor or wall point " << i;
+  // The caps that touch, within each plane's band (at most the link limit, 4 spacings), go
+  // with it; every point farther from both planes stays.
+  const double link = CleaningOptions{}.link_spacings * c.summary.spacing;
+  int ball_kept = 0;
+  for (Eigen::Index i = 0; i < ball.cols(); ++i) {
+    ball_kept += Kept(c, static_cast<int>(i));
+    if (ball(2, i) > -0.5 + link && ball(1, i) < 0.5 - link) {
+      ASSERT_TRUE(Kept(c, static_cast<int>(i))) << i;
+    }
+  }
+  // Measured: 5,274 of the 6,000 kept (the ball is sparse: its spacing is 4.5 cm, the bands 9 cm).
+  EXPECT_GT(ball_kept, 5000);
+  EXPECT_EQ(Removed(c.summary), c.summary.flat);
+
+  // Off, the floor and wall are the ball's piece and stay.
+  CleaningOptions off;
+  off.touching_planes = 0;
+  EXPECT_EQ(Removed(CleanTarget(scene, {}, off).summary), 0);
+
+  std::vector<int> one_side;
+  const Eigen::Matrix3Xd sheet = Sheet(120, 2.4, Eigen::Vector3d(0, 0, -0.5), 2, 0.004);
+  for (Eigen::Index i = 0; i < sheet.cols(); ++i)
+    if (sheet(0, i) > 0.15 && sheet(0, i) < 1.35 && std::abs(sheet(1, i)) < 0.6)
+      one_side.push_back(static_cast<int>(i));
+  const Eigen::Matrix3Xd flap = sheet(Eigen::all, one_side);
+  const CleanedTarget winged = CleanTarget(Join(ball, flap), {});
+  EXPECT_EQ(Removed(winged.summary), 0);
 }
 
 // What is flat but not a background stays: the flat face of a half body (a split carcass), in
