@@ -2,6 +2,8 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <boost/geometry.hpp>
+#include <boost/geometry/geometries/point_xy.hpp>
 #include <boost/pending/disjoint_sets.hpp>
 #include <chrono>
 #include <cmath>
@@ -153,6 +155,9 @@ void DropFlatPieces(const Eigen::Matrix3Xd& points, const CleaningOptions& optio
   }
 }
 
+using Point2 = boost::geometry::model::d2::point_xy<double>;
+using Polygon = boost::geometry::model::polygon<Point2>;
+
 // A plane found among the kept points: its centre and unit normal, and the band about it
 // (its points' distance limit).
 struct Plane {
@@ -182,22 +187,26 @@ Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> Principal(const Eigen::Matrix3Xd&
   return Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(outer / count - mean * mean.transpose());
 }
 
-// Planes the body touches: a floor it rests on, a wall it leans on, joined to it in one piece
-// (DropFlatPieces finds those apart). A plane is started at each of kSeeds points spread over
-// the kept points (the best plane of its kSeedNeighbours nearest) and refitted to a sample of
-// at most kSample of them within its band, three times their deviation across it (at least two
-// spacings; a band that grows to the link limit is a curved surface, not a plane). The plane
-// holding most of the sample is judged by DropFlatPieces' tests (thin against its width, wide
-// against the body's diagonal, the body on one side, half its points out of the body's
-// shadow), and as a sheet: on a grid of link-limit cells over it, at least half the cells
-// holding its points have all 8 neighbours holding its points or under the body's shadow (a
-// spider's legs spread in one plane are strips), and the centre of the body's shadow lies in
-// the box of the cells reached from those inner cells through cells holding its points (a
-// floor reaches round the body; a flat flap of it lies beside it). A plane that passes goes:
-// its points in the reached cells (with the body's touching cap, when it is reached), and the
-// points within twice the band out of the body's shadow there (its noise's stragglers). It is
-// counted as a flat piece, and the search runs again, up to options.touching_planes times,
-// stopping at the first plane that fails.
+// Floors and walls, found as planes among the kept points before the pieces: one the body
+// rests on or leans on, in one piece with it, and one apart from it alike (DropFlatPieces then
+// judges what is left). A plane is started at each of kSeeds points spread over the kept points
+// (the best plane of its kSeedNeighbours nearest) and refitted to a sample of at most kSample
+// of them within its band, three times their deviation across it (at least two spacings; a
+// band that grows to the link limit is a curved surface, not a plane). The plane holding most
+// of the sample goes when: it is thin against its width and wide against the body's diagonal
+// (flat_thickness, flat_width); at most 1 % of the body's points lie beyond twice its band on
+// its far side; the body stands off it (the 90th percentile of its distances from the plane
+// at least kStandsOff of its diagonal); half its points lie out of the body's shadow (beyond
+// the link limit from it and outside its convex hull: not the cut face of a split carcass seen
+// with its rim round it); it is a sheet (on a grid of link-limit cells over it, at least half the
+// cells holding its points have all 8 neighbours holding its points or under the body's shadow: a
+// spider's legs spread in one plane are strips); and the centre of the body's shadow lies in the
+// box of the cells reached from those inner cells through cells holding its points (a floor reaches
+// round the body; a flat flap of it lies beside it). What goes: its points in the reached cells
+// (the body's touching cap where its cells join them), and the points within twice the band out of
+// the body's shadow there (its noise's stragglers; a thin limb lying on it too). It counts as
+// a flat piece, and the search runs again, up to options.touching_planes times, stopping at
+// the first plane that fails (a larger flat part of the body that fails hides a floor).
 void DropTouchingPlanes(const Eigen::Matrix3Xd& points, const PointIndex& index,
                         const CleaningOptions& options, double spacing, double link_limit,
                         std::vector<char>* keep, CleaningSummary* summary) {
@@ -207,12 +216,14 @@ void DropTouchingPlanes(const Eigen::Matrix3Xd& points, const PointIndex& index,
   constexpr int kSeedNeighbours = 32;
   constexpr int kRefits = 6;
   constexpr double kOtherSide = 0.01;  // of the body's points, on a floor's other side
-  const double min_band = 2.0 * spacing;
+  constexpr double kStandsOff = 0.05;  // of the body's diagonal
+  const double min_band = std::min(2.0 * spacing, link_limit);
   constexpr double kCells = 256.0;
   std::vector<int> kept_columns, plane_columns, body_columns, found;
   std::vector<char> grid;
+  boost::geometry::model::multi_point<Point2> hull_points;
   std::vector<std::pair<int, int>> flood;
-  std::vector<double> squared;
+  std::vector<double> squared, distances;
   for (int round = 0; round < options.touching_planes; ++round) {
     kept_columns.clear();
     for (Eigen::Index i = 0; i < points.cols(); ++i)
@@ -266,26 +277,44 @@ void DropTouchingPlanes(const Eigen::Matrix3Xd& points, const PointIndex& index,
     const Eigen::Vector3d other = normal.cross(along);
     if (spread(0) > options.flat_thickness * spread(1)) return;
     const Eigen::Matrix3Xd body = points(Eigen::all, body_columns);
-    if (std::sqrt(12.0) * spread(1) < options.flat_width * geometry::BoundingBoxDiagonal(body))
-      return;
     const Eigen::ArrayXd side =
         (normal.transpose() * (body.colwise() - centre)).transpose().array();
-    const long above = (side > 3.0 * spread(0)).count();
-    const long below = (side < -3.0 * spread(0)).count();
+    // Beyond twice the band: the plane's own noise leaves a few of its points (0.3 % at three
+    // deviations) just beyond the band on both sides, as many as 1 % of the body's when the
+    // plane holds a few times its points.
+    const long above = (side > 2.0 * best.band).count();
+    const long below = (side < -2.0 * best.band).count();
     if (static_cast<double>(std::min(above, below)) > kOtherSide * static_cast<double>(body.cols()))
       return;
-    // The body's shadow on the plane, in the plane's axes about its centre: of its points
-    // beyond twice the band, since the plane's own noise leaves a few of its points (0.3 % at
-    // three deviations) just beyond it, scattered over its whole width.
+    // The body proper: its points beyond twice the band, since the plane's stragglers just
+    // beyond the band lie scattered over its whole width.
     std::vector<Eigen::Index> clear;
     for (Eigen::Index b = 0; b < body.cols(); ++b)
       if (std::abs(side(b)) > 2.0 * best.band) clear.push_back(b);
     if (clear.empty()) return;
+    const double diagonal = geometry::BoundingBoxDiagonal(body(Eigen::all, clear));
+    if (std::sqrt(12.0) * spread(1) < options.flat_width * diagonal) return;
+    // A body resting on a floor or leaning on a wall stands off it: the 90th percentile of its
+    // points' distances from the plane is at least kStandsOff of its diagonal. The cut face of
+    // a split carcass scanned from that side alone, with only its rim beside it, does not.
+    distances.assign(side.data(), side.data() + side.size());
+    for (double& d : distances) d = std::abs(d);
+    const auto tall = distances.begin() + static_cast<std::ptrdiff_t>(0.9 * (distances.size() - 1));
+    std::nth_element(distances.begin(), tall, distances.end());
+    if (*tall < kStandsOff * diagonal) return;
+    // The body's shadow on the plane, in the plane's axes about its centre.
     Eigen::Matrix3Xd shadow = Eigen::Matrix3Xd::Zero(3, static_cast<Eigen::Index>(clear.size()));
     shadow.row(0) = along.transpose() * (body(Eigen::all, clear).colwise() - centre);
     shadow.row(1) = other.transpose() * (body(Eigen::all, clear).colwise() - centre);
     const Eigen::Vector2d shadow_centre = shadow.topRows<2>().rowwise().mean();
-    // The extent of its points out of the body's shadow (the touching cap is in the band too).
+    // Its points out of the body's shadow: farther than the link limit from it and outside its
+    // convex hull (the cut face of a split carcass seen with its rim lies within the rim's), and
+    // their extent (the touching cap is in the band too).
+    hull_points.clear();
+    for (Eigen::Index b = 0; b < shadow.cols(); ++b)
+      hull_points.emplace_back(shadow(0, b), shadow(1, b));
+    Polygon hull;
+    boost::geometry::convex_hull(hull_points, hull);
     Eigen::Vector2d low = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
     Eigen::Vector2d high = -low;
     long outside = 0;
@@ -293,16 +322,19 @@ void DropTouchingPlanes(const Eigen::Matrix3Xd& points, const PointIndex& index,
     for (const int i : plane_columns) {
       const Eigen::Vector3d x(along.dot(points.col(i) - centre), other.dot(points.col(i) - centre),
                               0.0);
-      if ((shadow.col(shadow_index.Nearest(x)) - x).norm() <= link_limit) continue;
+      if ((shadow.col(shadow_index.Nearest(x)) - x).norm() <= link_limit ||
+          boost::geometry::within(Point2(x(0), x(1)), hull))
+        continue;
       ++outside;
       low = low.cwiseMin(x.head<2>());
       high = high.cwiseMax(x.head<2>());
     }
     if (2 * outside < static_cast<long>(plane_columns.size())) return;
-    // A floor is a sheet: at least half the cells of a grid over it (link-limit cells, at most
-    // kCells a side) that hold its points have all 8 neighbours holding its points or under
-    // the body's shadow (what the body hides of it). Limbs spread flat in one plane (a
-    // spider's legs) are strips a cell or two wide, with few such cells.
+    // A floor is a sheet: on a grid over the box of its points out of the body's shadow
+    // (link-limit cells, coarser when that would make more than kCells a side), at least half
+    // the cells that hold its points have all 8 neighbours holding its points or under the
+    // body's shadow (what the body hides of it). Limbs spread flat in one plane (a spider's
+    // legs) are strips a cell or two wide, with few such cells.
     const double cell = std::max(link_limit, (high - low).maxCoeff() / kCells);
     const Eigen::Array2i cells = ((high - low) / cell).array().cast<int>() + 1;
     grid.assign(static_cast<std::size_t>(cells(0)) * static_cast<std::size_t>(cells(1)), 0);
@@ -310,9 +342,15 @@ void DropTouchingPlanes(const Eigen::Matrix3Xd& points, const PointIndex& index,
       return grid[static_cast<std::size_t>(v) * static_cast<std::size_t>(cells(0)) +
                   static_cast<std::size_t>(u)];
     };
+    // The cell of @p x, or (-1, -1) beyond the grid (checked before the cast to int).
+    const auto cell_of = [&](const Eigen::Vector2d& x) {
+      const Eigen::Array2d c = ((x - low) / cell).array().floor();
+      if ((c < 0.0).any() || (c >= cells.cast<double>()).any()) return Eigen::Array2i(-1, -1);
+      return Eigen::Array2i(c.cast<int>());
+    };
     const auto mark = [&](const Eigen::Vector2d& x, char bit) {
-      const Eigen::Array2i c = ((x - low) / cell).array().floor().cast<int>();
-      if ((c >= 0).all() && (c < cells).all()) at(c(0), c(1)) |= bit;
+      const Eigen::Array2i c = cell_of(x);
+      if (c(0) >= 0) at(c(0), c(1)) |= bit;
     };
     for (const int i : plane_columns)
       mark(Eigen::Vector2d(along.dot(points.col(i) - centre), other.dot(points.col(i) - centre)),
@@ -333,8 +371,8 @@ void DropTouchingPlanes(const Eigen::Matrix3Xd& points, const PointIndex& index,
       }
     if (2 * inner < holding || inner == 0) return;
     // The sheet: the cells holding its points reached from its inner cells through cells that
-    // hold its points (a limb crossing its plane beyond its edge, or the body's touching cap
-    // under its shadow, is not reached).
+    // hold its points. A limb crossing its plane more than a cell beyond its edge is not
+    // reached; the body's touching cap is where its cells join the sheet's.
     constexpr char kSheet = 4;
     for (const auto& [u, v] : flood) at(u, v) |= kSheet;
     while (!flood.empty()) {
@@ -367,8 +405,8 @@ void DropTouchingPlanes(const Eigen::Matrix3Xd& points, const PointIndex& index,
     // apart from the body).
     const auto on_it = [&](const Eigen::Vector3d& p) {
       const Eigen::Vector2d x(along.dot(p - centre), other.dot(p - centre));
-      const Eigen::Array2i c = ((x - low) / cell).array().floor().cast<int>();
-      return (c >= 0).all() && (c < cells).all() && (at(c(0), c(1)) & kSheet);
+      const Eigen::Array2i c = cell_of(x);
+      return c(0) >= 0 && (at(c(0), c(1)) & kSheet);
     };
     int taken = 0;
     for (const int i : plane_columns) {

@@ -43,15 +43,19 @@ struct CleaningOptions {
   /// outline, lies under it and stays). Such a piece goes whatever its size and is never taken
   /// for the body, unless two such pieces lie in parallel planes apart: rows of a line scanner
   /// the neighbour graph could not join, and none goes. A flat part joined to the body is in
-  /// the body's piece (touching_planes). 0 turns the rule off.
+  /// the body's piece (touching_planes). 0 turns this rule and touching_planes off.
   double flat_thickness = 0.1;
   double flat_width = 0.25;
-  /// A floor or wall the body touches, joined to it in one piece (found before the pieces):
-  /// at most this many planes found among the points and taken out when they pass the flat
-  /// pieces' tests, are a sheet (not limbs spread flat in one plane) and reach round the
-  /// centre of the body's shadow (a flat flap of the body lies beside it); the body's touching
-  /// cap goes with them where it joins the sheet. The plane's band is three deviations of its
-  /// points (at least two spacings). 0: off.
+  /// A floor or wall the body touches, in one piece with it: at most this many planes found
+  /// among the points before the pieces (one apart from the body too) and taken out when they
+  /// are thin and wide (flat_thickness, flat_width), have the body on one side standing off
+  /// them (its 90th percentile distance at least 0.05 of its diagonal: not the cut face of a
+  /// split carcass seen alone), reach out of its shadow and its convex hull (not that cut
+  /// face with its rim round it), are a sheet (not limbs spread flat in
+  /// one plane) and reach round the centre of its shadow (a flat flap of the body lies
+  /// beside it). The body's touching cap goes with them where it joins, and so does a thin
+  /// limb lying on them. The band is three deviations of the plane's points, at least two
+  /// spacings and at most the link limit. 0: off.
   int touching_planes = 3;
   /// A cloud of more points than this many per template vertex is read at every n-th point
   /// (in its column order), the smallest n that brings it within the cap; 0: never. The
@@ -71,7 +75,7 @@ struct CleaningSummary {
   int strays = 0;          ///< points dropped as strays
   int detached = 0;        ///< points dropped in small far pieces of 2 or more
   int pieces_dropped = 0;  ///< how many such pieces
-  int flat = 0;            ///< points dropped in flat pieces (floor, wall, backdrop)
+  int flat = 0;  ///< points dropped as floors, walls, backdrops (a touching plane's cap too)
   int flat_pieces = 0;     ///< how many such pieces
   int rejoined = 0;        ///< points of small far pieces put back (MorphCarcass)
   int rejoined_pieces = 0;          ///< how many such pieces

@@ -206,7 +206,8 @@ Eigen::Matrix3Xd RestingFloor(const Eigen::Matrix3Xd& points, Random* random,
   std::vector<Eigen::Vector3d> floor;
   for (int i = 0; i < per_side; ++i)
     for (int j = 0; j < per_side; ++j) {
-      const double a = cu + step * (i - 0.5 * per_side), b = cv + step * (j - 0.5 * per_side);
+      const double a = cu + step * (i + 0.5 - 0.5 * per_side);
+      const double b = cv + step * (j + 0.5 - 0.5 * per_side);
       const Eigen::Vector3d flat(a, b, 0.0);
       if (!raised.empty() && (footprint.col(under.Nearest(flat)) - flat).norm() < step) continue;
       floor.push_back(a * u + b * v + level * down);

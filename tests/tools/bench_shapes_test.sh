@@ -156,7 +156,7 @@ print(f"ok: severed: {100 * gone:.1f} % of the points gone, full mean error {100
 PY
 # The floor variant (a floor the body rests on, in one piece with it): the floor's points
 # added, and the morph as good as on the clean cloud once the cleaning takes the plane out
-# (measured 0.551 %, 0.525 % clean; 57.6 % with `clean.touching_planes` 0).
+# (measured: 94 % more points; 0.551 %, 0.525 % clean; 57.6 % with `clean.touching_planes` 0).
 "$vbutcher" bench shapes --shapes lamb --lamb-pairs 1 --sigmas-mm 4 --variants clean,floor \
   --no-png --csv "$work/floor.csv" >/dev/null 2>&1
 /usr/bin/python3 - "$work/floor.csv" <<'PY'
@@ -164,7 +164,7 @@ import csv, sys
 by = {(r["variant"], r["method"]): r for r in csv.DictReader(open(sys.argv[1]))}
 added = int(by[("floor", "full")]["points"]) / int(by[("clean", "full")]["points"]) - 1
 err = float(by[("floor", "full")]["mean_err_rel"])
-if not 0.5 < added < 1.0 or not err < 0.0065:
+if not 0.6 < added < 1.2 or not err < 0.0065:
     print(f"FAIL: floor: {100 * added:.0f} % more points, full mean error {100 * err:.3f} %")
     sys.exit(1)
 print(f"ok: floor: {100 * added:.0f} % more points, full mean error {100 * err:.3f} %")
