@@ -1,7 +1,6 @@
 #include "perception/oni_recording.h"
 
 #include <OpenNI.h>
-
 #include <poll.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -13,6 +12,10 @@
 #include <functional>
 #include <memory>
 #include <stdexcept>
+#include <string>
+#include <system_error>
+
+#include "io/oni_file.h"
 
 namespace vb::perception {
 
@@ -57,9 +60,14 @@ void RecordOne(const CameraCalibration& camera, const CaptureOptions& capture_op
   const std::uint64_t first = capture.status(0).frames;
   const std::int64_t end = MonotonicNs() + static_cast<std::int64_t>(seconds * 1e9);
   while (MonotonicNs() < end) capture.Poll();
+  const long frames = static_cast<long>(capture.status(0).frames - first);
   recorder.stop();
+  // The stream stops before the recorder closes. OpenNI2 takes a stream's recorder list and then
+  // the recorder's stream list when a frame arrives, and the other way round when a recorder is
+  // destroyed: a frame arriving then hangs both threads (docs/decisions.md has the measurement).
+  stream->stop();
   recorder.destroy();
-  done(static_cast<long>(capture.status(0).frames - first));
+  done(frames);
 }
 
 }  // namespace
@@ -124,22 +132,41 @@ RecordSummary RecordOni(const RigCalibration& rig, const CaptureOptions& capture
     } while (polled < 0 && errno == EINTR);
     if (polled > 0) got = read(child.pipe_fd, &frames, sizeof(frames));
     close(child.pipe_fd);
-    if (polled == 0) {
-      std::fprintf(stderr, "record: %s: no answer within %.0f s of the recording's end; stopped\n",
-                   rig.cameras[child.camera].name.c_str(), kChildGraceS);
-      kill(child.pid, SIGKILL);
-    }
+    if (polled == 0) kill(child.pid, SIGKILL);
     int status = 0;
     waitpid(child.pid, &status, 0);
-    if (got != sizeof(frames) || frames < 0 || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
-      continue;  // not streaming, or stuck: left out
+    const std::string& name = rig.cameras[child.camera].name;
+    std::string why;
+    if (polled == 0)
+      why = "its recorder did not finish within " + std::to_string(static_cast<int>(kChildGraceS)) +
+            " s of the recording's end";
+    else if (got != sizeof(frames) || frames < 0 || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
+      why = "not streaming, or its recorder failed (see the message above)";
+    if (why.empty()) {
+      // A recorder that closed its file leaves it whole; a file cut short is not a recording.
+      try {
+        io::CheckOniFile(child.file);
+      } catch (const std::exception& e) {
+        why = std::string("its file is unsound: ") + e.what();
+      }
+    }
+    if (!why.empty()) {
+      std::error_code ignored;
+      std::filesystem::remove(child.file, ignored);  // a partial file is not left as a recording
+      summary.left_out.push_back(name + ": " + why);
+      continue;
+    }
     summary.files.push_back(child.file);
     summary.frames_seen.push_back(static_cast<std::uint64_t>(frames));
     CameraCalibration replay = rig.cameras[child.camera];
     replay.uri = child.file.string();
     playback.cameras.push_back(replay);
   }
-  if (summary.files.empty()) throw std::runtime_error("record: no camera is streaming");
+  if (summary.files.empty()) {
+    std::string why;
+    for (const std::string& one : summary.left_out) why += "; " + one;
+    throw std::runtime_error("record: no camera was recorded" + why);
+  }
   summary.rig_path = options.out_dir / "rig.yaml";
   SaveRigCalibration(summary.rig_path, playback);
   return summary;

@@ -164,8 +164,9 @@ int RunRecord(const RecordCommandOptions& options) {
   for (std::size_t i = 0; i < summary.files.size(); ++i)
     std::printf("%s  (%llu frames read while recording)\n", summary.files[i].c_str(),
                 static_cast<unsigned long long>(summary.frames_seen[i]));
+  for (const std::string& why : summary.left_out) std::printf("left out: %s\n", why.c_str());
   std::printf("playback calibration: %s\n", summary.rig_path.c_str());
-  return 0;
+  return summary.left_out.empty() ? 0 : 3;  // a recording without every camera is said
 }
 
 int RunCaptureBench(const CaptureBenchOptions& options) {

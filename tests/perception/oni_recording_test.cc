@@ -200,6 +200,30 @@ TEST_F(OniRecordingTest, RecordingPlaysBackThroughOpenNi2sFileDriver) {
   EXPECT_GE(oni.nodes[0].data_records, 10u);
 }
 
+// A camera that never streams is left out of the playback rig, named with the reason, and leaves
+// no file that could pass for its recording (here, one left by an earlier recording into the same
+// folder); the others are recorded whole.
+TEST_F(OniRecordingTest, ACameraThatDoesNotStreamIsLeftOutAndNamed) {
+  perception::VirtualRigOptions options;
+  options.ring.num_cameras = 2;
+  WriteRig(options);
+  SetFault(scene_.rig.cameras[1].serial, CameraFault::kMissing);
+  RecordOptions record;
+  record.out_dir = dir_ / "recording";
+  record.seconds = 0.5;
+  const std::filesystem::path stale = record.out_dir / (scene_.rig.cameras[1].serial + ".oni");
+  std::filesystem::create_directories(record.out_dir);
+  std::ofstream(stale) << "an earlier take";
+  const RecordSummary summary = RecordOni(scene_.rig, CaptureOptions{}, record);
+  ASSERT_EQ(summary.files.size(), 1u);
+  ASSERT_EQ(summary.left_out.size(), 1u);
+  EXPECT_THAT(summary.left_out[0],
+              ::testing::HasSubstr(scene_.rig.cameras[1].name + ": not streaming"));
+  EXPECT_FALSE(std::filesystem::exists(stale));
+  EXPECT_GE(io::CheckOniFile(summary.files[0]).nodes.at(0).frames, 5u);
+  EXPECT_EQ(LoadRigCalibration(summary.rig_path).cameras.size(), 1u);
+}
+
 TEST_F(OniRecordingTest, ARecordingInTenthsOfAMillimetrePlaysInMillimetres) {
   ExpectPlaysAsTheLensSees(openni::PIXEL_FORMAT_DEPTH_100_UM, false);
 }
