@@ -191,8 +191,9 @@ Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> Principal(const Eigen::Matrix3Xd&
 // rests on or leans on, in one piece with it, and one apart from it alike (DropFlatPieces then
 // judges what is left). A plane is started at each of kSeeds points spread over the kept points
 // (the best plane of its kSeedNeighbours nearest) and refitted to a sample of at most kSample
-// of them within its band, three times their deviation across it (at least two spacings; a
-// band that grows to the link limit is a curved surface, not a plane). The plane holding most
+// of them within its band, three times their deviation across it (read from their median
+// distance; at least two spacings; a band that grows to the link limit is a curved surface,
+// not a plane). The plane holding most
 // of the sample goes when: it is thin against its width and wide against the body's diagonal
 // (flat_thickness, flat_width); at most 1 % of the body's points lie beyond twice its band on
 // its far side; the body stands off it (the 90th percentile of its distances from the plane
@@ -252,9 +253,15 @@ void DropTouchingPlanes(const Eigen::Matrix3Xd& points, const PointIndex& index,
             inside.push_back(k);
         plane.count = static_cast<long>(inside.size());
         if (refit == kRefits || inside.size() < 3) break;
-        const auto eigen = Principal(sample, inside, &plane.centre);
-        plane.normal = eigen.eigenvectors().col(0);
-        const double band = 3.0 * std::sqrt(std::max(0.0, eigen.eigenvalues()(0)));
+        plane.normal = Principal(sample, inside, &plane.centre).eigenvectors().col(0);
+        // The deviation across it from the median distance: the body's touching cap in the
+        // band, a minority, moves it little where it would widen a root mean square.
+        distances.clear();
+        for (const Eigen::Index k : inside)
+          distances.push_back(std::abs(plane.normal.dot(sample.col(k) - plane.centre)));
+        const auto middle = distances.begin() + static_cast<std::ptrdiff_t>(distances.size() / 2);
+        std::nth_element(distances.begin(), middle, distances.end());
+        const double band = 3.0 * 1.4826 * *middle;
         curved = band >= link_limit;
         plane.band = std::clamp(band, min_band, link_limit);
       }

@@ -54,8 +54,8 @@ struct CleaningOptions {
   /// face with its rim round it), are a sheet (not limbs spread flat in
   /// one plane) and reach round the centre of its shadow (a flat flap of the body lies
   /// beside it). The body's touching cap goes with them where it joins, and so does a thin
-  /// limb lying on them. The band is three deviations of the plane's points, at least two
-  /// spacings and at most the link limit. 0: off.
+  /// limb lying on them. The band is three deviations of the plane's points (read from their
+  /// median distance), at least two spacings and at most the link limit. 0: off.
   int touching_planes = 3;
   /// A cloud of more points than this many per template vertex is read at every n-th point
   /// (in its column order), the smallest n that brings it within the cap; 0: never. The

@@ -164,6 +164,20 @@ for variant, (low, high, limit) in limits.items():
           f"full mean error {100 * err:.3f} %")
 sys.exit(1 if failed else 0)
 PY
+# A noisy floor (16 mm) under the lamb's third pair of seed 1 (rest-s1000005): the plane search
+# reads a refit's deviation from the median distance, so the lamb's touching cap in the band
+# does not widen it into a "curved surface" and the floor goes (measured: full mean error
+# 1.29 %; 16.7 % from the root mean square, with confidence 0.60). Bound 1.5x.
+"$vbutcher" bench shapes --shapes lamb --lamb-pairs 3 --sigmas-mm 16 --variants floor \
+  --no-png --csv "$work/floor16.csv" >/dev/null 2>&1
+/usr/bin/python3 - "$work/floor16.csv" <<'PY'
+import csv, sys
+rows = {(r["pair"], r["method"]): r for r in csv.DictReader(open(sys.argv[1]))}
+err = float(rows[("rest-s1000005", "full")]["mean_err_rel"])
+ok = err < 1.5 * 0.0129
+print(f"{'ok' if ok else 'FAIL'}: a 16 mm floor under rest-s1000005: full mean error {100 * err:.2f} %")
+sys.exit(0 if ok else 1)
+PY
 status=0
 "$vbutcher" bench shapes --shapes lamb --lamb-pose-scale 5 --csv "$work/no.csv" >/dev/null 2>&1 || status=$?
 [ "$status" -eq 2 ] || { echo "FAIL: --lamb-pose-scale 5 exited $status, not 2"; exit 1; }
