@@ -106,7 +106,8 @@ NoiseReading ReadNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, 
     std::nth_element(values.begin(), middle, values.end());
     return *middle;
   };
-  return {1.4826 * median(residuals), median(reaches), densities.empty() ? 0.0 : median(densities)};
+  return {kMadToSigma * median(residuals), median(reaches),
+          densities.empty() ? 0.0 : median(densities)};
 }
 
 }  // namespace

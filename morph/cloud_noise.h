@@ -18,6 +18,10 @@ struct NoiseEstimate {
   double density = 0.0;
 };
 
+/// A normal distribution's standard deviation over its median absolute deviation: the noise
+/// read from a median distance.
+inline constexpr double kMadToSigma = 1.4826;
+
 /// Fewest and most neighbours a noise reading fits to: at least twice the quadratic's six
 /// coefficients; at most what its fits hold inline.
 inline constexpr int kMinNoiseNeighbours = 12;

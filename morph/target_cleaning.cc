@@ -11,6 +11,7 @@
 
 #include "geometry/mesh_measures.h"
 #include "io/error.h"
+#include "morph/cloud_noise.h"
 #include "morph/point_index.h"
 
 namespace vb::morph {
@@ -255,13 +256,13 @@ void DropTouchingPlanes(const Eigen::Matrix3Xd& points, const PointIndex& index,
         if (refit == kRefits || inside.size() < 3) break;
         plane.normal = Principal(sample, inside, &plane.centre).eigenvectors().col(0);
         // The deviation across it from the median distance: the body's touching cap in the
-        // band, a minority, moves it little where it would widen a root mean square.
+        // band, a minority, moves a median little.
         distances.clear();
         for (const Eigen::Index k : inside)
           distances.push_back(std::abs(plane.normal.dot(sample.col(k) - plane.centre)));
         const auto middle = distances.begin() + static_cast<std::ptrdiff_t>(distances.size() / 2);
         std::nth_element(distances.begin(), middle, distances.end());
-        const double band = 3.0 * 1.4826 * *middle;
+        const double band = 3.0 * kMadToSigma * *middle;
         curved = band >= link_limit;
         plane.band = std::clamp(band, min_band, link_limit);
       }

@@ -10,6 +10,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -25,6 +26,12 @@ namespace {
 // camera and settling (0.5 s) and closing the file, with room for a sanitizer build on a loaded
 // machine.
 constexpr double kChildGraceS = 60.0;
+
+// True when @p uri names the file @p file (a recording that is also this take's output).
+bool SameFile(const std::string& uri, const std::filesystem::path& file) {
+  std::error_code failed;
+  return !uri.empty() && std::filesystem::equivalent(uri, file, failed) && !failed;
+}
 
 // Records one camera in this process. Before the camera is closed, calls @p done with the
 // frames read while recording once the file is closed, or with -1 when it cannot record.
@@ -58,13 +65,22 @@ void RecordOne(const CameraCalibration& camera, const CaptureOptions& capture_op
     return;
   }
   const std::uint64_t first = capture.status(0).frames;
+  const int reopens = capture.status(0).device_reopens;
   const std::int64_t end = MonotonicNs() + static_cast<std::int64_t>(seconds * 1e9);
   while (MonotonicNs() < end) capture.Poll();
   const long frames = static_cast<long>(capture.status(0).frames - first);
+  // A device reopened mid-take detached the recorder with its old stream: the file ends there.
+  if (capture.status(0).device_reopens != reopens) {
+    std::fprintf(stderr, "record: %s: the device was reopened while recording (%s)\n",
+                 camera.name.c_str(), capture.status(0).last_error);
+    done(-1);
+    return;
+  }
   recorder.stop();
   // The stream stops before the recorder closes. OpenNI2 takes a stream's recorder list and then
   // the recorder's stream list when a frame arrives, and the other way round when a recorder is
-  // destroyed: a frame arriving then hangs both threads (docs/decisions.md has the measurement).
+  // destroyed: a frame arriving then hangs both threads. This holds for a driver whose stream
+  // stop waits for its frame callbacks to return (ours joins its frame thread).
   stream->stop();
   recorder.destroy();
   done(frames);
@@ -75,6 +91,11 @@ void RecordOne(const CameraCalibration& camera, const CaptureOptions& capture_op
 RecordSummary RecordOni(const RigCalibration& rig, const CaptureOptions& capture_options,
                         const RecordOptions& options) {
   std::filesystem::create_directories(options.out_dir);
+  // An earlier take's playback calibration is not left beside this take's files (unless this
+  // rig plays recordings, whose calibration it may be).
+  if (std::none_of(rig.cameras.begin(), rig.cameras.end(),
+                   [](const CameraCalibration& camera) { return io::IsOniUri(camera.uri); }))
+    std::filesystem::remove(options.out_dir / "rig.yaml");
   // One process per camera. OpenNI2's recorders share compression state inside a process:
   // measured with two cameras recorded together, up to 80 % of the frames in a file were
   // corrupt (a different share each run); one recorder per process records every frame
@@ -82,7 +103,8 @@ RecordSummary RecordOni(const RigCalibration& rig, const CaptureOptions& capture
   struct Child {
     pid_t pid = -1;
     int pipe_fd = -1;
-    std::filesystem::path file;
+    std::filesystem::path file;  ///< the recording, once whole
+    std::filesystem::path part;  ///< what the child writes
     std::size_t camera = 0;
   };
   std::vector<Child> children;
@@ -90,6 +112,8 @@ RecordSummary RecordOni(const RigCalibration& rig, const CaptureOptions& capture
     Child child;
     child.camera = c;
     child.file = std::filesystem::absolute(options.out_dir / (rig.cameras[c].serial + ".oni"));
+    child.part = child.file;
+    child.part += ".part";
     int fds[2];
     if (pipe(fds) != 0) throw std::runtime_error("record: pipe failed");
     child.pid = fork();
@@ -97,13 +121,13 @@ RecordSummary RecordOni(const RigCalibration& rig, const CaptureOptions& capture
     if (child.pid == 0) {
       close(fds[0]);
       // Answers as soon as the file is complete and leaves without closing the camera or
-      // OpenNI2: this process ends here, so nothing slow to stop can hold up the parent.
+      // OpenNI2: this process ends here, so nothing slow to close can hold up the parent.
       const auto answer = [fd = fds[1]](long frames) {
         const ssize_t written = write(fd, &frames, sizeof(frames));
         _exit(written == sizeof(frames) && frames >= 0 ? 0 : 1);
       };
       try {
-        RecordOne(rig.cameras[c], capture_options, child.file, options.seconds, answer);
+        RecordOne(rig.cameras[c], capture_options, child.part, options.seconds, answer);
       } catch (const std::exception& e) {
         std::fprintf(stderr, "record: %s: %s\n", rig.cameras[c].name.c_str(), e.what());
       }
@@ -144,15 +168,29 @@ RecordSummary RecordOni(const RigCalibration& rig, const CaptureOptions& capture
       why = "not streaming, or its recorder failed (see the message above)";
     if (why.empty()) {
       // A recorder that closed its file leaves it whole; a file cut short is not a recording.
+      // The file is this process's own: its size is not bounded as an input's is.
+      io::ReadLimits ours = io::DefaultReadLimits();
+      ours.max_file_bytes = std::numeric_limits<std::int64_t>::max();
       try {
-        io::CheckOniFile(child.file);
+        io::CheckOniFile(child.part, ours);
       } catch (const std::exception& e) {
         why = std::string("its file is unsound: ") + e.what();
       }
     }
+    std::error_code failed;
+    if (why.empty()) {
+      std::filesystem::rename(child.part, child.file, failed);
+      if (failed) why = "its file cannot be renamed: " + failed.message();
+    }
     if (!why.empty()) {
-      std::error_code ignored;
-      std::filesystem::remove(child.file, ignored);  // a partial file is not left as a recording
+      // Neither the partial file nor an earlier take's file of that name is left as this
+      // take's; the camera's own input (a recording re-recorded into its folder) is kept.
+      std::filesystem::remove(child.part, failed);
+      if (failed) why += "; " + child.part.string() + " cannot be removed: " + failed.message();
+      if (!SameFile(rig.cameras[child.camera].uri, child.file)) {
+        std::filesystem::remove(child.file, failed);
+        if (failed) why += "; " + child.file.string() + " cannot be removed: " + failed.message();
+      }
       summary.left_out.push_back(name + ": " + why);
       continue;
     }

@@ -27,7 +27,7 @@ int main(int argc, char** argv) {
       "Exit status: 0 done; 1 failed at run time (a device, a socket, a file that cannot be "
       "written); 2 the command line or an input file is wrong (the message names it); 3 the "
       "work did not succeed (capture: no frame set; morph: the target could not be morphed; "
-      "lcm-listen: messages missing, invalid or malformed).");
+      "record: a camera left out; lcm-listen: messages missing, invalid or malformed).");
 
   // --threads, as the morph's commands take it: the threads one morph runs on.
   const auto add_threads = [](CLI::App* command, int& threads, const std::string& help) {
