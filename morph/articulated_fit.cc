@@ -8,6 +8,7 @@
 #include <numbers>
 
 #include "io/error.h"
+#include "morph/order_statistic.h"
 
 namespace vb::morph {
 namespace {
@@ -17,9 +18,7 @@ namespace {
 double KeepLimit(std::vector<double> d, double keep_fraction) {
   std::erase(d, std::numeric_limits<double>::infinity());
   if (d.empty()) return 0.0;
-  const auto cut = static_cast<std::size_t>(keep_fraction * static_cast<double>(d.size() - 1));
-  std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(cut), d.end());
-  return d[cut];
+  return SelectQuantile(d, keep_fraction);
 }
 
 double TrimmedMean(std::vector<double> d, double keep_fraction) {

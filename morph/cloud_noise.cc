@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "io/error.h"
+#include "morph/order_statistic.h"
 
 namespace vb::morph {
 
@@ -101,13 +102,8 @@ NoiseReading ReadNoise(const Eigen::Matrix3Xd& points, const PointIndex& index, 
       densities.push_back(static_cast<double>(n + 1) / (std::numbers::pi * farthest));
   }
   if (residuals.empty()) return {};
-  const auto median = [](std::vector<double>& values) {
-    const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-    std::nth_element(values.begin(), middle, values.end());
-    return *middle;
-  };
-  return {kMadToSigma * median(residuals), median(reaches),
-          densities.empty() ? 0.0 : median(densities)};
+  return {kMadToSigma * SelectUpperMedian(residuals), SelectUpperMedian(reaches),
+          densities.empty() ? 0.0 : SelectUpperMedian(densities)};
 }
 
 }  // namespace

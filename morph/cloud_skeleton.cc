@@ -14,6 +14,7 @@
 
 #include "geometry/mesh_measures.h"
 #include "io/error.h"
+#include "morph/order_statistic.h"
 #include "morph/point_index.h"
 
 namespace vb::morph {
@@ -133,9 +134,7 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
     throw InputError("skeleton: the points sit on " + std::to_string(n) +
                      " spots that link to no other; no shape to follow");
   std::vector<double> sorted = lengths;
-  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
-                   sorted.end());
-  const double max_edge = 3.0 * sorted[sorted.size() / 2];
+  const double max_edge = 3.0 * SelectUpperMedian(sorted);
   // The graph's edges in the order they are found: the short neighbour links, then the
   // bridges below. Kept as a list and made a compressed graph once complete: a graph that
   // grows keeps a vector per point, and their growth was most of a skeleton's allocations.
@@ -294,9 +293,7 @@ SkeletonGraph CloudSkeleton(const Eigen::Matrix3Xd& input, const CloudSkeletonOp
       if (count > 0) sizes.push_back(count);
     }
     if (!sizes.empty()) {
-      std::nth_element(sizes.begin(), sizes.begin() + static_cast<std::ptrdiff_t>(sizes.size() / 2),
-                       sizes.end());
-      const double small = options.min_band_piece * sizes[sizes.size() / 2];
+      const double small = options.min_band_piece * SelectUpperMedian(sizes);
       const auto points_of = [&](int root) { return piece_points[static_cast<std::size_t>(root)]; };
       // Each graph edge between two pieces side by side in one band, both ways round as
       // (piece, neighbour); sorted, a run of equal pairs counts the edges they share. Pieces

@@ -15,6 +15,7 @@
 #include "io/error.h"
 #include "morph/cloud_normals.h"
 #include "morph/limb_turn.h"
+#include "morph/order_statistic.h"
 #include "morph/point_index.h"
 
 namespace vb::morph {
@@ -61,9 +62,7 @@ Similarity RefineSimilarity(const Eigen::Matrix3Xd& template_samples,
       d[static_cast<std::size_t>(i)] = (matched.col(i) - placed.col(i)).norm();
     }
     sorted = d;
-    const std::size_t cut = static_cast<std::size_t>(0.7 * (sorted.size() - 1));
-    std::nth_element(sorted.begin(), sorted.begin() + cut, sorted.end());
-    const double limit = sorted[cut];
+    const double limit = SelectQuantile(sorted, 0.7);
     Eigen::Index used = 0;
     for (Eigen::Index i = 0; i < n; ++i) {
       if (d[static_cast<std::size_t>(i)] > limit) continue;

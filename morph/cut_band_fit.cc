@@ -6,6 +6,7 @@
 #include <cmath>
 #include <vector>
 
+#include "morph/order_statistic.h"
 #include "morph/point_index.h"
 
 namespace vb::morph {
@@ -72,9 +73,7 @@ std::optional<BandSlide> FitBandSlide(
       residual[j] = std::abs(normal.dot(moved - surface.col(k)) + surface_outward(k));
     }
     std::vector<double> sorted = residual;
-    std::nth_element(sorted.begin(),
-                     sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2), sorted.end());
-    const double cutoff = 3.0 * std::max(sorted[sorted.size() / 2], 1e-12);
+    const double cutoff = 3.0 * std::max(SelectUpperMedian(sorted), 1e-12);
     Matrix7d A = Matrix7d::Zero();
     Vector7d b = Vector7d::Zero();
     double sum_squares = 0.0;

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "io/error.h"
+#include "morph/order_statistic.h"
 #include "morph/point_index.h"
 
 namespace vb::morph {
@@ -42,9 +43,7 @@ MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
       if (d > limit) ++far;
     }
     check.unexplained = static_cast<double>(far) / static_cast<double>(target.cols());
-    const auto p99 = distances.begin() + static_cast<std::ptrdiff_t>(0.99 * (distances.size() - 1));
-    std::nth_element(distances.begin(), p99, distances.end());
-    if (size > 0) check.reach = *p99 / size;
+    if (size > 0) check.reach = SelectQuantile(distances, 0.99) / size;
   }
 
   std::vector<double> logs;
@@ -66,11 +65,7 @@ MorphCheck CheckMorph(const TemplateModel& model, const CoarseResult& coarse,
   check.reach_allowance =
       options.reach_noise * check.noise +
       (edges > 0 ? edge_sum / static_cast<double>(edges) / std::sqrt(3.0) : 0.0);
-  if (!logs.empty()) {
-    const auto k = logs.begin() + static_cast<std::ptrdiff_t>(0.9 * (logs.size() - 1));
-    std::nth_element(logs.begin(), k, logs.end());
-    check.stretch = *k;
-  }
+  if (!logs.empty()) check.stretch = SelectQuantile(logs, 0.9);
 
   // Unknown (and refused below) unless both meshes hold the template's vertices.
   check.size = std::numeric_limits<double>::quiet_NaN();

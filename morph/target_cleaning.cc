@@ -12,10 +12,47 @@
 #include "geometry/mesh_measures.h"
 #include "io/error.h"
 #include "morph/cloud_noise.h"
+#include "morph/order_statistic.h"
 #include "morph/point_index.h"
 
 namespace vb::morph {
 namespace {
+
+// The body's shadow on a plane: the body's points projected onto it, as (u, v, 0) in the
+// plane's unit axes along and other about origin, with a kd-tree over them. Cloud units.
+class PlaneShadow {
+ public:
+  PlaneShadow(const Eigen::Matrix3Xd& body, const Eigen::Vector3d& along,
+              const Eigen::Vector3d& other, const Eigen::Vector3d& origin)
+      : along_(along),
+        other_(other),
+        origin_(origin),
+        points_(Project(body, along, other, origin)),
+        index_(points_) {}
+
+  // @p x in the plane's axes (its third coordinate 0).
+  Eigen::Vector3d InPlane(const Eigen::Vector3d& x) const {
+    return {along_.dot(x - origin_), other_.dot(x - origin_), 0.0};
+  }
+  // How far @p in_plane (InPlane's) lies from the shadow's nearest point.
+  double Distance(const Eigen::Vector3d& in_plane) const {
+    return (points_.col(index_.Nearest(in_plane)) - in_plane).norm();
+  }
+  const Eigen::Matrix3Xd& points() const { return points_; }
+
+ private:
+  static Eigen::Matrix3Xd Project(const Eigen::Matrix3Xd& body, const Eigen::Vector3d& along,
+                                  const Eigen::Vector3d& other, const Eigen::Vector3d& origin) {
+    Eigen::Matrix3Xd projected = Eigen::Matrix3Xd::Zero(3, body.cols());
+    projected.row(0) = along.transpose() * (body.colwise() - origin);
+    projected.row(1) = other.transpose() * (body.colwise() - origin);
+    return projected;
+  }
+
+  Eigen::Vector3d along_, other_, origin_;
+  Eigen::Matrix3Xd points_;
+  PointIndex index_;  // over points_, declared after it
+};
 
 // The pieces of @p piece_of (each kept point's piece, -1 for a dropped one) that are floors or
 // walls (CleaningOptions::flat_thickness): their points are no longer kept or in a piece, and
@@ -120,15 +157,9 @@ void DropFlatPieces(const Eigen::Matrix3Xd& points, const CleaningOptions& optio
   for (std::size_t s : candidates) {
     const Shape& shape = shapes[s];
     const Eigen::Vector3d other = shape.normal.cross(shape.along);
-    Eigen::Matrix3Xd shadow = Eigen::Matrix3Xd::Zero(3, body_points.cols());
-    shadow.row(0) = shape.along.transpose() * body_points;
-    shadow.row(1) = other.transpose() * body_points;
-    const PointIndex shadow_index(shadow);
+    const PlaneShadow shadow(body_points, shape.along, other, Eigen::Vector3d::Zero());
     long outside = 0;
-    for (int i : members[s]) {
-      const Eigen::Vector3d x(shape.along.dot(points.col(i)), other.dot(points.col(i)), 0.0);
-      outside += (shadow.col(shadow_index.Nearest(x)) - x).norm() > link_limit;
-    }
+    for (int i : members[s]) outside += shadow.Distance(shadow.InPlane(points.col(i))) > link_limit;
     if (2 * outside < static_cast<long>(members[s].size())) continue;
     floor[s] = 1;
   }
@@ -260,9 +291,7 @@ void DropTouchingPlanes(const Eigen::Matrix3Xd& points, const PointIndex& index,
         distances.clear();
         for (const Eigen::Index k : inside)
           distances.push_back(std::abs(plane.normal.dot(sample.col(k) - plane.centre)));
-        const auto middle = distances.begin() + static_cast<std::ptrdiff_t>(distances.size() / 2);
-        std::nth_element(distances.begin(), middle, distances.end());
-        const double band = 3.0 * kMadToSigma * *middle;
+        const double band = 3.0 * kMadToSigma * SelectUpperMedian(distances);
         curved = band >= link_limit;
         plane.band = std::clamp(band, min_band, link_limit);
       }
@@ -300,38 +329,32 @@ void DropTouchingPlanes(const Eigen::Matrix3Xd& points, const PointIndex& index,
     for (Eigen::Index b = 0; b < body.cols(); ++b)
       if (std::abs(side(b)) > 2.0 * best.band) clear.push_back(b);
     if (clear.empty()) return;
-    const double diagonal = geometry::BoundingBoxDiagonal(body(Eigen::all, clear));
+    const Eigen::Matrix3Xd standing = body(Eigen::all, clear);
+    const double diagonal = geometry::BoundingBoxDiagonal(standing);
     if (std::sqrt(12.0) * spread(1) < options.flat_width * diagonal) return;
     // A body resting on a floor or leaning on a wall stands off it: the 90th percentile of its
     // points' distances from the plane is at least kStandsOff of its diagonal. The cut face of
     // a split carcass scanned from that side alone, with only its rim beside it, does not.
     distances.assign(side.data(), side.data() + side.size());
     for (double& d : distances) d = std::abs(d);
-    const auto tall = distances.begin() + static_cast<std::ptrdiff_t>(0.9 * (distances.size() - 1));
-    std::nth_element(distances.begin(), tall, distances.end());
-    if (*tall < kStandsOff * diagonal) return;
+    if (SelectQuantile(distances, 0.9) < kStandsOff * diagonal) return;
     // The body's shadow on the plane, in the plane's axes about its centre.
-    Eigen::Matrix3Xd shadow = Eigen::Matrix3Xd::Zero(3, static_cast<Eigen::Index>(clear.size()));
-    shadow.row(0) = along.transpose() * (body(Eigen::all, clear).colwise() - centre);
-    shadow.row(1) = other.transpose() * (body(Eigen::all, clear).colwise() - centre);
-    const Eigen::Vector2d shadow_centre = shadow.topRows<2>().rowwise().mean();
+    const PlaneShadow shadow(standing, along, other, centre);
+    const Eigen::Vector2d shadow_centre = shadow.points().topRows<2>().rowwise().mean();
     // Its points out of the body's shadow: farther than the link limit from it and outside its
     // convex hull (the cut face of a split carcass seen with its rim lies within the rim's), and
     // their extent (the touching cap is in the band too).
     hull_points.clear();
-    for (Eigen::Index b = 0; b < shadow.cols(); ++b)
-      hull_points.emplace_back(shadow(0, b), shadow(1, b));
+    for (Eigen::Index b = 0; b < shadow.points().cols(); ++b)
+      hull_points.emplace_back(shadow.points()(0, b), shadow.points()(1, b));
     Polygon hull;
     boost::geometry::convex_hull(hull_points, hull);
     Eigen::Vector2d low = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
     Eigen::Vector2d high = -low;
     long outside = 0;
-    const PointIndex shadow_index(shadow);
     for (const int i : plane_columns) {
-      const Eigen::Vector3d x(along.dot(points.col(i) - centre), other.dot(points.col(i) - centre),
-                              0.0);
-      if ((shadow.col(shadow_index.Nearest(x)) - x).norm() <= link_limit ||
-          boost::geometry::within(Point2(x(0), x(1)), hull))
+      const Eigen::Vector3d x = shadow.InPlane(points.col(i));
+      if (shadow.Distance(x) <= link_limit || boost::geometry::within(Point2(x(0), x(1)), hull))
         continue;
       ++outside;
       low = low.cwiseMin(x.head<2>());
@@ -360,10 +383,9 @@ void DropTouchingPlanes(const Eigen::Matrix3Xd& points, const PointIndex& index,
       const Eigen::Array2i c = cell_of(x);
       if (c(0) >= 0) at(c(0), c(1)) |= bit;
     };
-    for (const int i : plane_columns)
-      mark(Eigen::Vector2d(along.dot(points.col(i) - centre), other.dot(points.col(i) - centre)),
-           1);
-    for (Eigen::Index b = 0; b < shadow.cols(); ++b) mark(shadow.col(b).head<2>(), 2);
+    for (const int i : plane_columns) mark(shadow.InPlane(points.col(i)).head<2>(), 1);
+    for (Eigen::Index b = 0; b < shadow.points().cols(); ++b)
+      mark(shadow.points().col(b).head<2>(), 2);
     long holding = 0, inner = 0;
     flood.clear();
     for (int v = 0; v < cells(1); ++v)
@@ -412,8 +434,7 @@ void DropTouchingPlanes(const Eigen::Matrix3Xd& points, const PointIndex& index,
     // band, out on the sheet away from the body's shadow (else each is a piece of its own,
     // apart from the body).
     const auto on_it = [&](const Eigen::Vector3d& p) {
-      const Eigen::Vector2d x(along.dot(p - centre), other.dot(p - centre));
-      const Eigen::Array2i c = cell_of(x);
+      const Eigen::Array2i c = cell_of(shadow.InPlane(p).head<2>());
       return c(0) >= 0 && (at(c(0), c(1)) & kSheet);
     };
     int taken = 0;
@@ -424,9 +445,7 @@ void DropTouchingPlanes(const Eigen::Matrix3Xd& points, const PointIndex& index,
     }
     for (Eigen::Index b = 0; b < body.cols(); ++b) {
       if (std::abs(side(b)) > 2.0 * best.band || !on_it(body.col(b))) continue;
-      const Eigen::Vector3d x(along.dot(body.col(b) - centre), other.dot(body.col(b) - centre),
-                              0.0);
-      if ((shadow.col(shadow_index.Nearest(x)) - x).norm() <= link_limit) continue;
+      if (shadow.Distance(shadow.InPlane(body.col(b))) <= link_limit) continue;
       (*keep)[static_cast<std::size_t>(body_columns[static_cast<std::size_t>(b)])] = 0;
       ++taken;
     }
@@ -508,9 +527,7 @@ CleanedTarget CleanTarget(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd
     }
   });
   std::vector<double> sorted = spacing;
-  const auto middle = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
-  std::nth_element(sorted.begin(), middle, sorted.end());
-  out.summary.spacing = *middle;
+  out.summary.spacing = SelectUpperMedian(sorted);
   if (!(out.summary.spacing > 0)) {  // most points coincide: nothing to read
     keep_all();
     return out;
