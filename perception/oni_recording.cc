@@ -22,10 +22,12 @@ namespace vb::perception {
 
 namespace {
 
-// How long after its recording should have ended a child may take to answer: opening the
-// camera and settling (0.5 s) and closing the file, with room for a sanitizer build on a loaded
-// machine.
-constexpr double kChildGraceS = 60.0;
+// @p seconds as a person writes it: "60", "0.25".
+std::string FormatSeconds(double seconds) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", seconds);
+  return text;
+}
 
 // True when @p uri names the file @p file (a recording that is also this take's output).
 bool SameFile(const std::string& uri, const std::filesystem::path& file) {
@@ -90,6 +92,10 @@ void RecordOne(const CameraCalibration& camera, const CaptureOptions& capture_op
 
 RecordSummary RecordOni(const RigCalibration& rig, const CaptureOptions& capture_options,
                         const RecordOptions& options) {
+  if (!(options.seconds > 0 && options.seconds <= 3600 && options.grace_seconds >= 0 &&
+        options.grace_seconds <= 3600))
+    throw std::invalid_argument(
+        "record: seconds must be in (0, 3600] and grace_seconds in [0, 3600]");
   std::filesystem::create_directories(options.out_dir);
   // An earlier take's playback calibration is not left beside this take's files (unless this
   // rig plays recordings, whose calibration it may be).
@@ -144,7 +150,7 @@ RecordSummary RecordOni(const RigCalibration& rig, const CaptureOptions& capture
   // A child that has not answered by the deadline (a driver stuck in open or close, say) is
   // killed and its camera left out, so recording never waits forever.
   const std::int64_t deadline =
-      MonotonicNs() + static_cast<std::int64_t>((options.seconds + kChildGraceS) * 1e9);
+      MonotonicNs() + static_cast<std::int64_t>((options.seconds + options.grace_seconds) * 1e9);
   for (const Child& child : children) {
     long frames = -1;
     ssize_t got = -1;
@@ -162,7 +168,7 @@ RecordSummary RecordOni(const RigCalibration& rig, const CaptureOptions& capture
     const std::string& name = rig.cameras[child.camera].name;
     std::string why;
     if (polled == 0)
-      why = "its recorder did not finish within " + std::to_string(static_cast<int>(kChildGraceS)) +
+      why = "its recorder did not finish within " + FormatSeconds(options.grace_seconds) +
             " s of the recording's end";
     else if (got != sizeof(frames) || frames < 0 || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
       why = "not streaming, or its recorder failed (see the message above)";

@@ -13,6 +13,11 @@ namespace vb::perception {
 struct RecordOptions {
   std::filesystem::path out_dir;
   double seconds = 5.0;
+  /// Seconds after the recording should have ended that a camera's recorder may take to
+  /// answer (opening the camera and waiting for its first frame, at least 0.5 s, and closing
+  /// the file) before it is killed and its camera left out. The default leaves room for a
+  /// sanitizer build on a loaded machine; a driver slow to open may need more.
+  double grace_seconds = 60.0;
 };
 
 struct RecordSummary {
@@ -28,14 +33,16 @@ struct RecordSummary {
 /// Each camera is recorded by a child process of its own (OpenNI2's recorders corrupt each
 /// other's frames within one process) into SERIAL.oni.part, which is walked with
 /// io::CheckOniFile once its recorder has closed it and then renamed. A camera that is not
-/// streaming, whose device is reopened mid-take, whose recorder fails or has not finished 60 s
-/// after the recording should have ended (it is killed), or whose file fails the walk is left
+/// streaming, whose device is reopened mid-take, whose recorder fails or has not finished
+/// grace_seconds after the recording should have ended (it is killed), or whose file fails the
+/// walk is left
 /// out of both: its partial file and an earlier take's SERIAL.oni are removed (not the camera's
 /// own input, when it plays that file), and it is named in RecordSummary::left_out with the
 /// reason. An earlier take's rig.yaml is removed first, unless @p rig plays recordings.
 /// @pre this process has no OpenNI2 capture open (children are forked).
-/// @throws std::runtime_error when no camera was recorded (naming each camera's reason) or a
-///   file cannot be written.
+/// @throws std::invalid_argument when seconds is outside (0, 3600] or grace_seconds outside
+///   [0, 3600]; std::runtime_error when no camera was recorded (naming each camera's reason) or
+///   a file cannot be written.
 RecordSummary RecordOni(const RigCalibration& rig, const CaptureOptions& capture,
                         const RecordOptions& options);
 

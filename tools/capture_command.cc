@@ -155,10 +155,13 @@ int RunRecord(const RecordCommandOptions& options) {
   UseScene(options.scene_path);
   if (!(options.seconds > 0 && options.seconds <= 3600))
     throw InputError("record: --seconds must be in (0, 3600]");
+  if (!(options.grace_seconds > 0 && options.grace_seconds <= 3600))
+    throw InputError("record: --grace-seconds must be in (0, 3600]");
   const perception::RigCalibration rig = perception::LoadRigCalibration(options.rig_path);
   perception::RecordOptions record;
   record.out_dir = options.out_dir;
   record.seconds = options.seconds;
+  record.grace_seconds = options.grace_seconds;
   const perception::RecordSummary summary =
       perception::RecordOni(rig, perception::CaptureOptions{}, record);
   for (std::size_t i = 0; i < summary.files.size(); ++i)

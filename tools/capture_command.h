@@ -40,6 +40,7 @@ struct RecordCommandOptions {
   std::filesystem::path scene_path;
   std::filesystem::path out_dir;
   double seconds = 5.0;
+  double grace_seconds = 60.0;
 };
 /// `vbutcher record`: one .oni per camera plus a playback calibration.
 int RunRecord(const RecordCommandOptions& options);

@@ -268,6 +268,11 @@ int main(int argc, char** argv) {
   record_cmd->add_option("--out", record.out_dir, "Output directory: SERIAL.oni, rig.yaml")
       ->required();
   record_cmd->add_option("--seconds", record.seconds, "Length")->capture_default_str();
+  record_cmd
+      ->add_option("--grace-seconds", record.grace_seconds,
+                   "How long after the take a camera's recorder may take to finish before it is "
+                   "killed and the camera left out")
+      ->capture_default_str();
 
   vb::tools::CaptureBenchOptions capture_bench;
   CLI::App* capture_bench_cmd = bench_cmd->add_subcommand(

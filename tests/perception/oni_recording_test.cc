@@ -6,15 +6,15 @@
 
 #include <algorithm>
 #include <chrono>
-#include <thread>
-
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
+#include <stdexcept>
 #include <string>
+#include <thread>
 
 #include "io/oni_file.h"
-
 #include "perception/depth_noise.h"
 #include "perception/depth_renderer.h"
 #include "tests/support/virtual_rig_fixture.h"
@@ -223,6 +223,54 @@ TEST_F(OniRecordingTest, ACameraThatDoesNotStreamIsLeftOutAndNamed) {
   EXPECT_GE(io::CheckOniFile(summary.files[0]).nodes.at(0).frames, 7u);  // 15 at 30 fps
   EXPECT_FALSE(std::filesystem::exists(summary.files[0].string() + ".part"));
   EXPECT_EQ(LoadRigCalibration(summary.rig_path).cameras.size(), 1u);
+}
+
+// A camera whose recorder has not answered grace_seconds after the take should have ended
+// (here its stream's first frame comes 10 s late, and the child waits for it) is killed and left
+// out, and nothing of it is left in the folder; with no camera recorded, no playback rig.
+TEST_F(OniRecordingTest, ARecorderThatDoesNotFinishInTimeIsKilledAndNamed) {
+  perception::VirtualRigOptions options;
+  options.ring.num_cameras = 1;
+  WriteRig(options);
+  SetStartDelay(10000);
+  CaptureOptions capture;
+  capture.first_frame_timeout_ms = 20000;
+  RecordOptions record;
+  record.out_dir = dir_ / "recording";
+  record.seconds = 0.2;
+  record.grace_seconds = 1.5;
+  const std::filesystem::path file = record.out_dir / (scene_.rig.cameras[0].serial + ".oni");
+  std::filesystem::create_directories(record.out_dir);
+  std::ofstream(file) << "an earlier take";
+  std::ofstream(record.out_dir / "rig.yaml") << "an earlier take's rig";
+  std::string error;
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    RecordOni(scene_.rig, capture, record);
+  } catch (const std::runtime_error& e) {
+    error = e.what();
+  }
+  // Killed, not waited for: the child would answer after the first frame, 10 s in.
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(6));
+  EXPECT_THAT(error, ::testing::HasSubstr(scene_.rig.cameras[0].name +
+                                          ": its recorder did not finish within 1.5 s"));
+  EXPECT_FALSE(std::filesystem::exists(file));
+  EXPECT_FALSE(std::filesystem::exists(file.string() + ".part"));
+  EXPECT_FALSE(std::filesystem::exists(record.out_dir / "rig.yaml"));
+}
+
+TEST(RecordOptionsTest, ALengthOrGraceOutOfRangeIsRefusedBeforeAnyCameraIsTouched) {
+  RigCalibration rig;
+  RecordOptions record;
+  record.out_dir = ::testing::TempDir() + "/never";
+  record.seconds = 0;
+  EXPECT_THROW(RecordOni(rig, CaptureOptions{}, record), std::invalid_argument);
+  record.seconds = 1;
+  record.grace_seconds = -1;
+  EXPECT_THROW(RecordOni(rig, CaptureOptions{}, record), std::invalid_argument);
+  record.grace_seconds = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(RecordOni(rig, CaptureOptions{}, record), std::invalid_argument);
+  EXPECT_FALSE(std::filesystem::exists(record.out_dir));
 }
 
 TEST_F(OniRecordingTest, ARecordingInTenthsOfAMillimetrePlaysInMillimetres) {
