@@ -5,6 +5,8 @@
 #include <iterator>
 #include <ranges>
 
+#include "io/error.h"
+
 namespace vb::morph {
 
 /// The value of rank floor(q (n - 1)) among the n values (0-based, ascending): the smallest at
@@ -13,6 +15,7 @@ namespace vb::morph {
 template <std::ranges::random_access_range Range>
 std::ranges::range_value_t<Range> SelectQuantile(Range&& values, double q) {
   const auto n = std::ranges::distance(values);
+  VB_DEMAND(n > 0 && q >= 0.0 && q <= 1.0);
   const auto rank =
       static_cast<std::ranges::range_difference_t<Range>>(q * static_cast<double>(n - 1));
   const auto at = std::ranges::begin(values) + rank;
@@ -25,6 +28,7 @@ std::ranges::range_value_t<Range> SelectQuantile(Range&& values, double q) {
 /// SelectQuantile. Precondition: values is not empty.
 template <std::ranges::random_access_range Range>
 std::ranges::range_value_t<Range> SelectUpperMedian(Range&& values) {
+  VB_DEMAND(!std::ranges::empty(values));
   const auto at = std::ranges::begin(values) + std::ranges::distance(values) / 2;
   std::ranges::nth_element(values, at);
   return *at;

@@ -92,10 +92,10 @@ void RecordOne(const CameraCalibration& camera, const CaptureOptions& capture_op
 
 RecordSummary RecordOni(const RigCalibration& rig, const CaptureOptions& capture_options,
                         const RecordOptions& options) {
-  if (!(options.seconds > 0 && options.seconds <= 3600 && options.grace_seconds >= 0 &&
+  if (!(options.seconds > 0 && options.seconds <= 3600 && options.grace_seconds >= 1 &&
         options.grace_seconds <= 3600))
     throw std::invalid_argument(
-        "record: seconds must be in (0, 3600] and grace_seconds in [0, 3600]");
+        "record: seconds must be in (0, 3600] and grace_seconds in [1, 3600]");
   std::filesystem::create_directories(options.out_dir);
   // An earlier take's playback calibration is not left beside this take's files (unless this
   // rig plays recordings, whose calibration it may be).
@@ -168,8 +168,9 @@ RecordSummary RecordOni(const RigCalibration& rig, const CaptureOptions& capture
     const std::string& name = rig.cameras[child.camera].name;
     std::string why;
     if (polled == 0)
-      why = "its recorder did not finish within " + FormatSeconds(options.grace_seconds) +
-            " s of the recording's end";
+      why = "its recorder had not finished " +
+            FormatSeconds(options.seconds + options.grace_seconds) +
+            " s after the take began (its length and the grace)";
     else if (got != sizeof(frames) || frames < 0 || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
       why = "not streaming, or its recorder failed (see the message above)";
     if (why.empty()) {

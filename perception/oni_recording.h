@@ -13,10 +13,10 @@ namespace vb::perception {
 struct RecordOptions {
   std::filesystem::path out_dir;
   double seconds = 5.0;
-  /// Seconds after the recording should have ended that a camera's recorder may take to
-  /// answer (opening the camera and waiting for its first frame, at least 0.5 s, and closing
-  /// the file) before it is killed and its camera left out. The default leaves room for a
-  /// sanitizer build on a loaded machine; a driver slow to open may need more.
+  /// Seconds beyond `seconds` that a camera's recorder may take, from the start, to answer
+  /// (opening the camera and waiting for its first frame, at least 0.5 s, and closing the
+  /// file) before it is killed and its camera left out; in [1, 3600]. The default leaves room
+  /// for a sanitizer build on a loaded machine; a driver slow to open may need more.
   double grace_seconds = 60.0;
 };
 
@@ -41,7 +41,7 @@ struct RecordSummary {
 /// reason. An earlier take's rig.yaml is removed first, unless @p rig plays recordings.
 /// @pre this process has no OpenNI2 capture open (children are forked).
 /// @throws std::invalid_argument when seconds is outside (0, 3600] or grace_seconds outside
-///   [0, 3600]; std::runtime_error when no camera was recorded (naming each camera's reason) or
+///   [1, 3600]; std::runtime_error when no camera was recorded (naming each camera's reason) or
 ///   a file cannot be written.
 RecordSummary RecordOni(const RigCalibration& rig, const CaptureOptions& capture,
                         const RecordOptions& options);

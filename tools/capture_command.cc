@@ -155,8 +155,8 @@ int RunRecord(const RecordCommandOptions& options) {
   UseScene(options.scene_path);
   if (!(options.seconds > 0 && options.seconds <= 3600))
     throw InputError("record: --seconds must be in (0, 3600]");
-  if (!(options.grace_seconds > 0 && options.grace_seconds <= 3600))
-    throw InputError("record: --grace-seconds must be in (0, 3600]");
+  if (!(options.grace_seconds >= 1 && options.grace_seconds <= 3600))
+    throw InputError("record: --grace-seconds must be in [1, 3600]");
   const perception::RigCalibration rig = perception::LoadRigCalibration(options.rig_path);
   perception::RecordOptions record;
   record.out_dir = options.out_dir;

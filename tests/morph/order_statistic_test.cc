@@ -2,7 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
+#include <cstddef>
 #include <vector>
 
 namespace vb::morph {
@@ -31,6 +33,24 @@ TEST(OrderStatisticTest, TheUpperMedianOfAnEvenCountIsTheHigherMiddleValue) {
   std::vector<double> one = {7.0};
   EXPECT_EQ(SelectUpperMedian(one), 7.0);
   EXPECT_EQ(SelectQuantile(one, 0.9), 7.0);
+}
+
+// Against a full sort, over counts 1 to 300 and the quantiles the morph reads.
+TEST(OrderStatisticTest, TheRanksAreThoseOfASortedCopy) {
+  for (std::size_t n = 1; n <= 300; ++n) {
+    std::vector<double> values(n);
+    for (std::size_t i = 0; i < n; ++i) values[i] = static_cast<double>((i * 7919) % 1009);
+    std::vector<double> sorted = values;
+    std::sort(sorted.begin(), sorted.end());
+    for (const double q : {0.0, 0.7, 0.8, 0.9, 0.99, 1.0}) {
+      std::vector<double> scratch = values;
+      EXPECT_EQ(SelectQuantile(scratch, q),
+                sorted[static_cast<std::size_t>(q * static_cast<double>(n - 1))])
+          << "n " << n << ", q " << q;
+    }
+    std::vector<double> scratch = values;
+    EXPECT_EQ(SelectUpperMedian(scratch), sorted[n / 2]) << "n " << n;
+  }
 }
 
 TEST(OrderStatisticTest, TheValuesAreReorderedAroundTheRankInPlace) {

@@ -455,7 +455,7 @@ PY
 check "record writes .oni files and a playback rig" 0 "playback calibration" \
   "$vbutcher" record --rig "$work/rig/rig.yaml" --scene "$work/rig/scene.yaml" --out "$work/rec" --seconds 0.5
 check "record refuses a grace out of range before recording" 2 "grace-seconds must be in" \
-  "$vbutcher" record --rig "$work/rig/rig.yaml" --scene "$work/rig/scene.yaml" --out "$work/rec" --grace-seconds 0
+  "$vbutcher" record --rig "$work/rig/rig.yaml" --scene "$work/rig/scene.yaml" --out "$work/rec" --grace-seconds 0.5
 check "capture plays the recording back" 0 "wrote" \
   "$vbutcher" capture --rig "$work/rec/rig.yaml" --out "$work/replayed.ply"
 check "cameras opens each recording of a playback rig" 0 "a recording" \
