@@ -92,10 +92,13 @@ void RecordOne(const CameraCalibration& camera, const CaptureOptions& capture_op
 
 RecordSummary RecordOni(const RigCalibration& rig, const CaptureOptions& capture_options,
                         const RecordOptions& options) {
-  if (!(options.seconds > 0 && options.seconds <= 3600 && options.grace_seconds >= 1 &&
-        options.grace_seconds <= 3600))
+  if (!(options.seconds > 0 && options.seconds <= RecordOptions::kMaxSeconds &&
+        options.grace_seconds >= RecordOptions::kMinGraceSeconds &&
+        options.grace_seconds <= RecordOptions::kMaxGraceSeconds))
     throw std::invalid_argument(
-        "record: seconds must be in (0, 3600] and grace_seconds in [1, 3600]");
+        "record: seconds must be in (0, " + std::to_string(RecordOptions::kMaxSeconds) +
+        "] and grace_seconds in [" + std::to_string(RecordOptions::kMinGraceSeconds) + ", " +
+        std::to_string(RecordOptions::kMaxGraceSeconds) + "]");
   std::filesystem::create_directories(options.out_dir);
   // An earlier take's playback calibration is not left beside this take's files (unless this
   // rig plays recordings, whose calibration it may be).

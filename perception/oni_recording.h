@@ -11,6 +11,12 @@
 namespace vb::perception {
 
 struct RecordOptions {
+  /// The ranges RecordOni accepts: seconds in (0, kMaxSeconds], grace_seconds in
+  /// [kMinGraceSeconds, kMaxGraceSeconds].
+  static constexpr int kMaxSeconds = 3600;
+  static constexpr int kMinGraceSeconds = 1;
+  static constexpr int kMaxGraceSeconds = 3600;
+
   std::filesystem::path out_dir;
   double seconds = 5.0;
   /// Seconds beyond `seconds` that a camera's recorder may take, from the start, to answer

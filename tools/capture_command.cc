@@ -153,15 +153,17 @@ int RunCapture(const CaptureCommandOptions& options) {
 
 int RunRecord(const RecordCommandOptions& options) {
   UseScene(options.scene_path);
-  if (!(options.seconds > 0 && options.seconds <= 3600))
-    throw InputError("record: --seconds must be in (0, 3600]");
-  if (!(options.grace_seconds >= 1 && options.grace_seconds <= 3600))
-    throw InputError("record: --grace-seconds must be in [1, 3600]");
+  using Limits = perception::RecordOptions;
+  const perception::RecordOptions& record = options.record;
+  if (!(record.seconds > 0 && record.seconds <= Limits::kMaxSeconds))
+    throw InputError("record: --seconds must be in (0, " + std::to_string(Limits::kMaxSeconds) +
+                     "]");
+  if (!(record.grace_seconds >= Limits::kMinGraceSeconds &&
+        record.grace_seconds <= Limits::kMaxGraceSeconds))
+    throw InputError("record: --grace-seconds must be in [" +
+                     std::to_string(Limits::kMinGraceSeconds) + ", " +
+                     std::to_string(Limits::kMaxGraceSeconds) + "]");
   const perception::RigCalibration rig = perception::LoadRigCalibration(options.rig_path);
-  perception::RecordOptions record;
-  record.out_dir = options.out_dir;
-  record.seconds = options.seconds;
-  record.grace_seconds = options.grace_seconds;
   const perception::RecordSummary summary =
       perception::RecordOni(rig, perception::CaptureOptions{}, record);
   for (std::size_t i = 0; i < summary.files.size(); ++i)

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <string>
 
+#include "perception/oni_recording.h"
 #include "perception/rig_calibration.h"
 
 namespace vb::tools {
@@ -38,9 +39,7 @@ int RunCapture(const CaptureCommandOptions& options);
 struct RecordCommandOptions {
   std::filesystem::path rig_path;
   std::filesystem::path scene_path;
-  std::filesystem::path out_dir;
-  double seconds = 5.0;
-  double grace_seconds = 60.0;
+  perception::RecordOptions record;  ///< out_dir, seconds and grace_seconds
 };
 /// `vbutcher record`: one .oni per camera plus a playback calibration.
 int RunRecord(const RecordCommandOptions& options);

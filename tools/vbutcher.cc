@@ -265,11 +265,11 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   record_cmd->add_option("--scene", record.scene_path, "Virtual scene (for the virtual rig)")
       ->check(CLI::ExistingFile);
-  record_cmd->add_option("--out", record.out_dir, "Output directory: SERIAL.oni, rig.yaml")
+  record_cmd->add_option("--out", record.record.out_dir, "Output directory: SERIAL.oni, rig.yaml")
       ->required();
-  record_cmd->add_option("--seconds", record.seconds, "Length")->capture_default_str();
+  record_cmd->add_option("--seconds", record.record.seconds, "Length")->capture_default_str();
   record_cmd
-      ->add_option("--grace-seconds", record.grace_seconds,
+      ->add_option("--grace-seconds", record.record.grace_seconds,
                    "How long after the take a camera's recorder may take to finish before it is "
                    "killed and the camera left out")
       ->capture_default_str();
