@@ -33,6 +33,7 @@
 #include "morph/point_index.h"
 #include "morph/template_model.h"
 #include "perception/carcass_generator.h"
+#include "perception/depth_renderer.h"
 #include "tools/bench_stats.h"
 #include "tools/shape_set/shape_set.h"
 
@@ -170,6 +171,55 @@ std::vector<int> SeveredEnd(const Eigen::Matrix3Xd& points, Random* random) {
     const bool gone = aside < 0.08 * diagonal && back > 0.07 * diagonal && back < 0.14 * diagonal;
     if (!gone) kept.push_back(static_cast<int>(i));
   }
+  return kept;
+}
+
+// The views variant: what @p views depth cameras see of @p mesh (the surface @p points were
+// sampled from, with their unit @p normals), as a scan from a few fixed cameras: the far side
+// of each limb and trunk, surfaces one part hides behind another, and surfaces seen at a
+// grazing angle are gone. The cameras stand two diagonals from the centroid, evenly spaced on
+// a circle about a random axis through it (the image's vertical), the first in a random
+// direction; each renders the mesh (1280 x 960, 60 degrees across) and sees a point that faces
+// it at more than 78 degrees from grazing (cosine 0.2) and lies no farther than 0.01 diagonals
+// behind the depth it rendered there. Returns the points seen by at least one camera.
+std::vector<int> SeenFrom(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
+                          const geometry::TriangleMesh& mesh, int views, Random* random) {
+  const Eigen::Vector3d centre = points.rowwise().mean();
+  const double diagonal = (points.rowwise().maxCoeff() - points.rowwise().minCoeff()).norm();
+  const Eigen::Vector3d first = random->NormalVector().normalized();
+  const Eigen::Vector3d up = first.cross(random->NormalVector()).normalized();
+  perception::Intrinsics intrinsics;
+  intrinsics.width = 1280;
+  intrinsics.height = 960;
+  intrinsics.fx = intrinsics.fy = 0.5 * intrinsics.width / std::tan(std::numbers::pi / 6);
+  intrinsics.cx = 0.5 * (intrinsics.width - 1);
+  intrinsics.cy = 0.5 * (intrinsics.height - 1);
+  constexpr double kMinCosine = 0.2, kDepthTolerance = 0.01;
+  std::vector<char> seen(static_cast<std::size_t>(points.cols()), 0);
+  for (int k = 0; k < views; ++k) {
+    const Eigen::Vector3d out = Eigen::AngleAxisd(2.0 * std::numbers::pi * k / views, up) * first;
+    Eigen::Isometry3d X_RigCam = Eigen::Isometry3d::Identity();
+    const Eigen::Vector3d z = -out, y = up, x = y.cross(z);
+    X_RigCam.linear() << x, y, z;
+    X_RigCam.translation() = centre + 2.0 * diagonal * out;
+    perception::DepthRenderer renderer(intrinsics, X_RigCam);
+    renderer.Render(mesh);
+    const Eigen::Isometry3d X_CamRig = X_RigCam.inverse();
+    for (Eigen::Index i = 0; i < points.cols(); ++i) {
+      const Eigen::Vector3d towards = X_RigCam.translation() - points.col(i);
+      if (normals.col(i).dot(towards) < kMinCosine * towards.norm()) continue;
+      const Eigen::Vector3d p = X_CamRig * points.col(i);
+      const long u = std::lround(intrinsics.fx * p.x() / p.z() + intrinsics.cx);
+      const long v = std::lround(intrinsics.fy * p.y() / p.z() + intrinsics.cy);
+      if (u < 0 || v < 0 || u >= intrinsics.width || v >= intrinsics.height) continue;
+      const float depth = renderer.depth_m()[static_cast<std::size_t>(v * intrinsics.width + u)];
+      if (depth > 0.0f && p.z() <= depth + kDepthTolerance * diagonal)
+        seen[static_cast<std::size_t>(i)] = 1;
+    }
+  }
+  std::vector<int> kept;
+  for (Eigen::Index i = 0; i < points.cols(); ++i)
+    if (seen[static_cast<std::size_t>(i)]) kept.push_back(static_cast<int>(i));
   return kept;
 }
 
@@ -403,10 +453,15 @@ std::filesystem::path PlotScript() {
 
 int RunShapeBench(const ShapeBenchOptions& options) {
   for (const std::string& v : options.variants) {
-    if (v != "clean" && v != "shadow" && v != "clutter" && v != "severed" && v != "floor") {
+    if (v != "clean" && v != "shadow" && v != "clutter" && v != "severed" && v != "floor" &&
+        v != "views") {
       throw InputError("bench shapes: --variants: '" + v +
-                       "' is none of clean, shadow, clutter, severed, floor");
+                       "' is none of clean, shadow, clutter, severed, floor, views");
     }
+  }
+  if (!(options.views >= 1 && options.views <= ShapeBenchOptions::kMaxViews)) {
+    throw InputError("bench shapes: --views must lie in 1 to " +
+                     std::to_string(ShapeBenchOptions::kMaxViews));
   }
   if (!(options.shadow_fraction > 0 && options.shadow_fraction < 1)) {
     throw InputError("bench shapes: --shadow-fraction must lie in (0, 1)");
@@ -498,6 +553,7 @@ int RunShapeBench(const ShapeBenchOptions& options) {
       Random clutter_random(seed ^ 0xc1077e5ull);  // the noise's streams are seed + 3 onwards
       Random severed_random(seed ^ 0x5e7e4edull);
       Random floor_random(seed ^ 0xf1002ull);
+      Random views_random(seed ^ 0x71e35ull);
       const Eigen::Isometry3d X = RandomPlacement(&placement_random);
       geometry::TriangleMesh placed = truth_mesh;
       placed.V = X * truth_mesh.V;
@@ -516,6 +572,14 @@ int RunShapeBench(const ShapeBenchOptions& options) {
       Eigen::Vector3d floor_normal = Eigen::Vector3d::UnitZ();
       const bool with_floor = std::find(options.variants.begin(), options.variants.end(),
                                         "floor") != options.variants.end();
+      const bool with_views = std::find(options.variants.begin(), options.variants.end(),
+                                        "views") != options.variants.end();
+      std::vector<int> seen;
+      if (with_views) {
+        geometry::TriangleMesh scanned = c.scanned[t];
+        scanned.V = (X * scanned.V).eval();
+        seen = SeenFrom(clean_points, normals, scanned, options.views, &views_random);
+      }
       const Eigen::Matrix3Xd floor = with_floor
                                          ? RestingFloor(clean_points, &floor_random, &floor_normal)
                                          : Eigen::Matrix3Xd();
@@ -528,6 +592,7 @@ int RunShapeBench(const ShapeBenchOptions& options) {
         for (const std::string& variant : options.variants) {
           Eigen::Matrix3Xd points = variant == "shadow"    ? Select(noisy, unshadowed)
                                     : variant == "severed" ? Select(noisy, unsevered)
+                                    : variant == "views"   ? Select(noisy, seen)
                                                            : noisy;
           if (variant == "clutter") {
             points.conservativeResize(3, noisy.cols() + clutter.cols());

@@ -27,6 +27,9 @@ struct ShapeBenchOptions {
   /// The clutter variant: stray points added, this many per target point (half scattered
   /// over the body's box, half on a ball beside it).
   double clutter_fraction = 0.05;
+  /// The views variant: depth cameras spaced evenly round the body, whose points it keeps.
+  int views = 2;
+  static constexpr int kMaxViews = 8;
   /// Points sampled over each target's surface: the model as its rig poses it (not the
   /// closed wrap), or the posed lamb.
   int points = 20000;

@@ -340,6 +340,11 @@ int main(int argc, char** argv) {
   shape_bench_cmd->add_option("--clutter-fraction", shape_bench.clutter_fraction,
                               "Stray points the clutter variant adds, per target point")
       ->capture_default_str();
+  shape_bench_cmd
+      ->add_option("--views", shape_bench.views,
+                   "Depth cameras round the body in the views variant, each seeing what it faces")
+      ->check(CLI::Range(1, vb::tools::ShapeBenchOptions::kMaxViews))
+      ->capture_default_str();
   shape_bench_cmd->add_option("--points", shape_bench.points, "Points sampled over each target's surface")
       ->capture_default_str();
   shape_bench_cmd->add_option("--seed", shape_bench.seed, "Seed of noise and placement")->capture_default_str();
