@@ -102,8 +102,9 @@ struct ArticulationOptions {
   /// the swing about the roots alone as well (AlignCoarse).
   int limb_swing_pivots = 4;
   /// Target limbs reclaimed (ReclaimLimbs), for the chosen placement, after its posture fit: a
-  /// target limb (a branch of the target's skeleton) whose surface points lie farther than
-  /// reclaim_uncovered from the posed template on average, template sizes, gets one template
+  /// target limb (a branch of the target's skeleton) whose surface points along its outer
+  /// half lie farther than reclaim_uncovered from the posed template on average, template
+  /// sizes (a limb laid along the trunk covers the root and leaves the end), gets one template
   /// limb turned onto it: of those whose posed root lies within reclaim_root of its skeleton,
   /// the one whose root's distance less its outer half's distance from every target limb is
   /// least. The fit is run again from there and kept by the same rule as the turn

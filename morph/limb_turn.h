@@ -84,14 +84,14 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
 
 /// Node transforms from @p start (a posture fit) with template limbs turned onto the target
 /// limbs it leaves uncovered: each target branch of @p guide whose supporting points
-/// (BranchGuide::target_support, every (1 + count / 200)-th) lie farther than
-/// options.reclaim_uncovered from the template posed by @p start, on average, most uncovered
-/// first, gets one template limb not yet moved: among those whose posed root lies within
-/// options.reclaim_root of the target branch's samples, the one whose outer half lies
-/// farthest from every target branch's samples (the root's distance less that, least). That
-/// limb, in its rest shape, is turned by the least rotation that points its axis (root to the
-/// mean of its samples) at the mean of the target branch's samples and hung from its posed
-/// root; the trunk and the other limbs keep @p start's transforms.
+/// (BranchGuide::target_support, every (1 + count / 200)-th) nearest its outer half of samples
+/// (all of them when none are) lie farther than options.reclaim_uncovered from the template
+/// posed by @p start, on average, most uncovered first, gets one template limb not yet moved: among
+/// those whose posed root lies within options.reclaim_root of the target branch's samples, the one
+/// whose outer half lies farthest from every target branch's samples (the root's distance less
+/// that, least). That limb, in its rest shape, is turned by the least rotation that points its axis
+/// (root to the mean of its samples) at the mean of the target branch's samples and hung from its
+/// posed root; the trunk and the other limbs keep @p start's transforms.
 /// @param[in] target 3 by N points in the target's frame (those the guide's support indexes).
 /// @param[in] placement the template's normalised frame -> the target's.
 /// @param[out] reclaimed the number of limbs turned (0: the state is @p start's).

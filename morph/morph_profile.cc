@@ -70,7 +70,7 @@ const std::array kKeys = {
     VB_PROFILE_KEY(coarse.articulation.limb_pair_fraction, kFraction, 0.0, 1.0, false, "posture fit: limbs paired for the turn by roots and points this far out"),
     VB_PROFILE_KEY(coarse.articulation.limb_swing_directions, kCount, 0, 2000, true, "posture fit: directions each limb is swung to (0: off)"),
     VB_PROFILE_KEY(coarse.articulation.limb_swing_pivots, kCount, 1, 20, true, "posture fit: points along each limb it is swung about, from its root out (1: the root alone)"),
-    VB_PROFILE_KEY(coarse.articulation.reclaim_uncovered, kSize, 0.0, 1.0, false, "posture fit: a target limb whose points lie this far from the fit on average gets a template limb turned onto it (0: off)"),
+    VB_PROFILE_KEY(coarse.articulation.reclaim_uncovered, kSize, 0.0, 1.0, false, "posture fit: a target limb whose outer half's points lie this far from the fit on average gets a template limb turned onto it (0: off)"),
     VB_PROFILE_KEY(coarse.articulation.reclaim_root, kSize, 0.0, 2.0, false, "posture fit: template limbs whose root lies this near such a target limb may be turned onto it"),
     VB_PROFILE_KEY(coarse.articulation.limb_swing_cap, kSize, 0.001, 1.0, false, "posture fit: distances a swing is scored on capped at; a turn the fit already did within it, or a swing about a pivot moving a limb less, is not fitted again"),
     VB_PROFILE_KEY(coarse.articulation.deformation.w_data, kWeight, 0.0, 1e6, false, "posture fit: data weight per node"),

@@ -584,5 +584,31 @@ TEST_F(TurnLimbsTest, ReclaimsTheLegATargetLimbWantsAndNothingElse) {
             1e-12);
 }
 
+TEST_F(TurnLimbsTest, ReadsATargetLimbAlongItsOuterHalf) {
+  // The left hind leg swung 100 degrees about its hip: its root stays on the template at rest
+  // and its end leaves it, so its points along its outer half lie farther from the template
+  // than its points as a whole. With the limit between the two readings, the leg is reclaimed.
+  const Eigen::Matrix3Xd here = SwungLeg(100.0);
+  const BranchGuide guide = GuideTo(*model_, here);
+  const PointIndex rest(model_->V);
+  // Measured: every target limb's points lie 0.107 template sizes from the rest template on
+  // average at most; the swung leg's outer half's, 0.142.
+  ArticulationOptions options;
+  options.reclaim_uncovered = 0.123;
+  double whole = 0.0;
+  for (const std::vector<int>& support : guide.target_support) {
+    if (support.empty()) continue;
+    double sum = 0.0;
+    for (const int i : support)
+      sum += (model_->V.col(rest.Nearest(here.col(i))) - here.col(i)).norm();
+    whole = std::max(whole, sum / static_cast<double>(support.size()));
+  }
+  EXPECT_LT(whole, options.reclaim_uncovered);
+  int reclaimed = -1;
+  const DeformationState identity = DeformationState::Identity(model_->graph.num_nodes());
+  ReclaimLimbs(*model_, guide, here, Similarity{}, identity, options, &reclaimed);
+  EXPECT_EQ(reclaimed, 1);
+}
+
 }  // namespace
 }  // namespace vb::morph
