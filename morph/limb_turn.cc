@@ -453,10 +453,9 @@ DeformationState ReclaimLimbs(const TemplateModel& model, const BranchGuide& gui
   const Eigen::Matrix3Xd posed = DeformPoints(model.graph, model.vertex_weights, model.V, start);
   const PointIndex posed_index(posed);
   std::vector<std::pair<double, int>> uncovered;  // (-distance, target branch)
-  const Eigen::Matrix3Xd theirs = TargetBranchesIn(guide, back);
-  const auto branch = [&](int b) { return theirs.middleCols(static_cast<Eigen::Index>(b) * n, n); };
   // A limb the fit laid along the trunk covers its target limb's root and leaves its end
-  // bare: the points nearest the branch's outer half are read, all of them where none are.
+  // bare: the points nearest the branch's outer half are read, all of them where none are
+  // (nearest in the target's frame, as the similarity leaves it).
   for (int b = 0; b < num_theirs; ++b) {
     const std::vector<int>& support = guide.target_support[static_cast<std::size_t>(b)];
     if (support.empty()) continue;
@@ -467,7 +466,11 @@ DeformationState ReclaimLimbs(const TemplateModel& model, const BranchGuide& gui
       const double d = (posed.col(posed_index.Nearest(p)) - p).norm();
       sum += d;
       Eigen::Index k = 0;
-      (branch(b).colwise() - p).colwise().squaredNorm().minCoeff(&k);
+      (guide.target_points.middleCols(static_cast<Eigen::Index>(b) * n, n).colwise() -
+       target.col(support[i]))
+          .colwise()
+          .squaredNorm()
+          .minCoeff(&k);
       if (k >= n / 2) {
         outer_sum += d;
         ++outer_count;
@@ -478,6 +481,8 @@ DeformationState ReclaimLimbs(const TemplateModel& model, const BranchGuide& gui
   }
   if (uncovered.empty()) return state;
   std::sort(uncovered.begin(), uncovered.end());
+  const Eigen::Matrix3Xd theirs = TargetBranchesIn(guide, back);
+  const auto branch = [&](int b) { return theirs.middleCols(static_cast<Eigen::Index>(b) * n, n); };
   // Each template limb's samples as posed, and how far its outer half lies from every target
   // limb: the farther, the readier it is to move.
   const Eigen::Matrix3Xd limbs =

@@ -84,8 +84,8 @@ DeformationState SwingLimbs(const TemplateModel& model, const BranchGuide& guide
 
 /// Node transforms from @p start (a posture fit) with template limbs turned onto the target
 /// limbs it leaves uncovered: each target branch of @p guide whose supporting points
-/// (BranchGuide::target_support, every (1 + count / 200)-th) nearest its outer half of samples
-/// (all of them when none are) lie farther than options.reclaim_uncovered from the template
+/// (BranchGuide::target_support, every (1 + count / 200)-th) nearest the outer half of its
+/// samples (all of them when none are) lie farther than options.reclaim_uncovered from the template
 /// posed by @p start, on average, most uncovered first, gets one template limb not yet moved: among
 /// those whose posed root lies within options.reclaim_root of the target branch's samples, the one
 /// whose outer half lies farthest from every target branch's samples (the root's distance less

@@ -180,8 +180,10 @@ std::vector<int> SeveredEnd(const Eigen::Matrix3Xd& points, Random* random) {
 // grazing angle are gone. The cameras stand two diagonals from the centroid, evenly spaced on
 // a circle about a random axis through it (the image's vertical), the first in a random
 // direction; each renders the mesh (1280 x 960, 60 degrees across) and sees a point that faces
-// it at more than 78 degrees from grazing (cosine 0.2) and lies no farther than 0.01 diagonals
-// behind the depth it rendered there. Returns the points seen by at least one camera.
+// it within 78 degrees of the point's normal (cosine 0.2 or more), falls inside its image and
+// lies no farther than 0.01 diagonals behind the depth it rendered there. Units are the mesh's
+// (DepthRenderer's near plane, 0.05, assumes metres). Returns the points seen by at least one
+// camera.
 std::vector<int> SeenFrom(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
                           const geometry::TriangleMesh& mesh, int views, Random* random) {
   const Eigen::Vector3d centre = points.rowwise().mean();

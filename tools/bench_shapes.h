@@ -29,6 +29,7 @@ struct ShapeBenchOptions {
   double clutter_fraction = 0.05;
   /// The views variant: depth cameras spaced evenly round the body, whose points it keeps.
   int views = 2;
+  /// The most cameras the views variant takes: each renders every target once.
   static constexpr int kMaxViews = 8;
   /// Points sampled over each target's surface: the model as its rig poses it (not the
   /// closed wrap), or the posed lamb.
