@@ -18,6 +18,7 @@
 #include <numbers>
 #include <numeric>
 #include <random>
+#include <sstream>
 #include <stdexcept>
 #include <utility>
 
@@ -313,6 +314,13 @@ double AngleDeg(const Eigen::Matrix3d& R) {
   return Eigen::AngleAxisd(R).angle() * 180.0 / std::numbers::pi;
 }
 
+// @p mm as a file name's part: "16mm", "2.5mm".
+std::string MillimetreLabel(double mm) {
+  std::ostringstream out;
+  out << mm << "mm";
+  return out.str();
+}
+
 // Errors of @p result (template vertices) against @p truth, relative to the target's size
 // (TrueSize: the template's diagonal times the scale of the best similarity onto the truth).
 void Score(const Eigen::Matrix3Xd& result, const Eigen::Matrix3Xd& truth,
@@ -559,6 +567,10 @@ int RunShapeBench(const ShapeBenchOptions& options) {
       const Eigen::Isometry3d X = RandomPlacement(&placement_random);
       geometry::TriangleMesh placed = truth_mesh;
       placed.V = X * truth_mesh.V;
+      placed.N = X.linear() * truth_mesh.N;
+      // What the morphs below are scored against, in their frame.
+      if (!options.export_dir.empty())
+        io::WriteMesh(options.export_dir / (c.name + "_" + target.pair + "_placed.ply"), placed);
       Eigen::Matrix3Xd clean_points, normals;
       try {
         geometry::SampleSurface(c.scanned[t], options.points, [&] { return sample_random.Uniform(); },
@@ -683,6 +695,17 @@ int RunShapeBench(const ShapeBenchOptions& options) {
             }
           } else {
             error = morphed.error;
+          }
+          if (!options.export_dir.empty()) {
+            // The cloud as the morph got it and what the two stages made of it, in the target's
+            // frame: vertex i of each morph is vertex i of the placed truth.
+            const std::string stem =
+                c.name + "_" + target.pair + "_" + MillimetreLabel(sigma_mm) + "_" + variant;
+            io::WriteCloud(options.export_dir / (stem + "_cloud.ply"),
+                           geometry::PointCloud{points, {}});
+            if (coarse.ok) io::WriteMesh(options.export_dir / (stem + "_coarse.ply"), coarse.mesh);
+            if (coarse.ok && dense.ok)
+              io::WriteMesh(options.export_dir / (stem + "_full.ply"), dense.mesh);
           }
           ++done;
           std::fprintf(stderr,

@@ -42,8 +42,10 @@ struct ShapeBenchOptions {
   /// path with .png. Made by scripts/plot-shapes (python3-matplotlib).
   std::filesystem::path png;
   bool no_png = false;
-  /// When set, the templates and posed targets are written there as PLY (vertex i of every
-  /// target is vertex i of its template).
+  /// When set, written there as PLY: each shape's template and source poses, each pair's
+  /// posed template (the truth) in the model's frame and placed as its targets are, and each
+  /// morph's cloud with its coarse and full morphs (`<shape>_<pair>_<sigma>mm_<variant>_cloud`,
+  /// `_coarse`, `_full`). Vertex i of every posed template and morph is vertex i of its template.
   std::filesystem::path export_dir;
   /// CGAL alpha wrap of the third-party models, fractions of their bounding-box diagonal.
   double wrap_alpha = WrapOptions{}.alpha;

@@ -361,7 +361,7 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"levelset", "mcf"}))
       ->capture_default_str();
   shape_bench_cmd->add_option("--export", shape_bench.export_dir,
-                              "Write templates and posed targets there as PLY");
+                              "Write templates, truths and every morph there as PLY");
 
   vb::tools::CamerasCommandOptions cameras;
   CLI::App* cameras_cmd = app.add_subcommand(

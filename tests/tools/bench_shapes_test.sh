@@ -2,13 +2,13 @@
 # A small `vbutcher bench shapes`: one humanoid, one creature and the lamb, one pair each, two
 # noise levels, the three variants. Reads back what it wrote: the CSV's columns and rows, the
 # camera shadow's and the clutter's shares, each family's full-morph error against its
-# measured value, clutter against clean, the example morphs and the PNG as an image. Then a
-# humanoid whose pose changed far, placed the right way round; a creature's foreleg swung about
-# a point out along its limb; a leg the dense stage keeps where the posture fit turned it; a fore
-# leg turned onto the target fore leg the posture fit left bare; and the lamb in wider poses
-# (--lamb-pose-scale); a limb's end a shadow cut off, put back (--variants severed); a
-# floor the body rests on, left out (--variants floor); and what two cameras, then one, see
-# (--variants views).
+# measured value, clutter against clean, the example morphs, each exported morph read back
+# against its row, and the PNG as an image. Then a humanoid whose pose changed far, placed the
+# right way round; a creature's foreleg swung about a point out along its limb; a leg the dense
+# stage keeps where the posture fit turned it; a fore leg turned onto the target fore leg the
+# posture fit left bare; and the lamb in wider poses (--lamb-pose-scale); a limb's end a shadow
+# cut off, put back (--variants severed); a floor the body rests on, left out (--variants
+# floor); and what two cameras, then one, see (--variants views).
 set -euo pipefail
 vbutcher=$1
 work=$(mktemp -d)
@@ -62,24 +62,59 @@ for shape in ("sydney", "spiderblob", "lamb"):
     for part in ("target", "truth", "coarse", "full"):
         if not (Path(sys.argv[3]) / f"{shape}_{part}.xyz").stat().st_size: fail.append(f"empty {shape}_{part}.xyz")
 # The export: per third-party shape its template, the rest and the one kept pose of its
-# source, and the posed template of the pair; the lamb its template and pair. Each a PLY
-# whose header counts the vertices it holds.
+# source; per pair its posed template in the model's frame and placed as the targets are; per
+# morph (2 noise levels, 3 variants) the cloud and the coarse and full morphs. The lamb has no
+# sources. Each a PLY whose header counts the vertices it holds.
 exported = sorted(p.name for p in Path(sys.argv[4]).iterdir())
-for shape in ("sydney", "spiderblob"):
+for shape, want in (("sydney", 23), ("spiderblob", 23), ("lamb", 21)):
     mine = [n for n in exported if n.startswith(shape + "_")]
-    if len(mine) != 4 or f"{shape}_template.ply" not in mine:
-        fail.append(f"{shape}: exported {mine}, want the template, 2 sources and 1 pair")
-if len([n for n in exported if n.startswith("lamb_")]) != 2: fail.append(f"lamb: exported {exported}")
+    if len(mine) != want or f"{shape}_template.ply" not in mine:
+        fail.append(f"{shape}: exported {len(mine)} files, want {want}: {mine}")
 for name in exported:
     head = (Path(sys.argv[4]) / name).read_bytes()[:400]
     if not head.startswith(b"ply") or b"element vertex " not in head: fail.append(f"{name}: not a PLY")
+# Each exported morph, read back against its placed truth, errs as its CSV row says (to the
+# CSV's six significant digits), and each cloud holds the points the row counts.
+import numpy as np
+def read_ply(path):
+    data = path.read_bytes()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    header = data[:end].decode().splitlines()
+    count, names = 0, []
+    for line in header:
+        if line.startswith("element vertex "): count = int(line.split()[2])
+        elif line.startswith("element face"): break
+        elif line.startswith("property double "): names.append(line.split()[2])
+    v = np.frombuffer(data, dtype="<f8", count=count * len(names), offset=end).reshape(count, len(names))
+    return v[:, [names.index("x"), names.index("y"), names.index("z")]]
+def similarity_scale(a, b):  # of the least-squares similarity a -> b (Umeyama)
+    a0, b0 = a - a.mean(0), b - b.mean(0)
+    u, s, vt = np.linalg.svd(b0.T @ a0 / len(a))
+    d = np.ones(3)
+    d[2] = np.sign(np.linalg.det(u @ vt))
+    return (s * d).sum() / (a0 ** 2).sum(1).mean()
+folder, read_back = Path(sys.argv[4]), 0
+for r in rows:
+    if r["method"] not in ("coarse", "full"): continue
+    stem = f"{r['shape']}_{r['pair']}_{float(r['sigma_mm']):g}mm_{r['variant']}"
+    rest = read_ply(folder / f"{r['shape']}_template.ply")
+    truth = read_ply(folder / f"{r['shape']}_{r['pair']}_placed.ply")
+    size = np.linalg.norm(rest.max(0) - rest.min(0)) * similarity_scale(rest, truth)
+    mean = np.linalg.norm(read_ply(folder / f"{stem}_{r['method']}.ply") - truth, axis=1).mean() / size
+    if abs(mean / float(r["mean_err_rel"]) - 1) > 6e-6:
+        fail.append(f"{stem} {r['method']}: mean error {mean:.7f} read back, {r['mean_err_rel']} in the CSV")
+    if r["method"] == "full" and len(read_ply(folder / f"{stem}_cloud.ply")) != int(r["points"]):
+        fail.append(f"{stem}: the exported cloud does not hold {r['points']} points")
+    read_back += 1
+if read_back != 36: fail.append(f"{read_back} morphs read back, want 36")
 import matplotlib.image
 img = matplotlib.image.imread(sys.argv[2])
 if img.shape[1] < 800 or img.shape[0] < 600: fail.append(f"picture is {img.shape}")
 if fail:
     print("FAIL:", *fail, sep="\n  ")
     sys.exit(1)
-print(f"ok: 48 rows, shadow 20 %, lamb full {100 * lamb:.2f} %, picture {img.shape[1]}x{img.shape[0]}")
+print(f"ok: 72 rows, shadow 20 %, lamb full {100 * lamb:.2f} %, 36 exported morphs read back, "
+      f"picture {img.shape[1]}x{img.shape[0]}")
 PY
 # A humanoid whose pose changed far (bcn t0-t9600, arms and legs turned): none of the placements
 # from the skeletons or the principal axes is within 150 degrees of the truth; the best one
