@@ -18,7 +18,6 @@
 #include <numbers>
 #include <numeric>
 #include <random>
-#include <sstream>
 #include <stdexcept>
 #include <utility>
 
@@ -312,13 +311,6 @@ Eigen::Matrix3d BestRotation(const Eigen::Matrix3Xd& from, const Eigen::Matrix3X
 
 double AngleDeg(const Eigen::Matrix3d& R) {
   return Eigen::AngleAxisd(R).angle() * 180.0 / std::numbers::pi;
-}
-
-// @p mm as a file name's part: "16mm", "2.5mm".
-std::string MillimetreLabel(double mm) {
-  std::ostringstream out;
-  out << mm << "mm";
-  return out.str();
 }
 
 // Errors of @p result (template vertices) against @p truth, relative to the target's size
@@ -699,13 +691,18 @@ int RunShapeBench(const ShapeBenchOptions& options) {
           if (!options.export_dir.empty()) {
             // The cloud as the morph got it and what the two stages made of it, in the target's
             // frame: vertex i of each morph is vertex i of the placed truth.
+            // A stage that failed writes nothing, and a file an earlier run left in its place
+            // goes.
             const std::string stem =
-                c.name + "_" + target.pair + "_" + MillimetreLabel(sigma_mm) + "_" + variant;
+                c.name + "_" + target.pair + "_" + MmLabel(sigma_mm) + "_" + variant;
             io::WriteCloud(options.export_dir / (stem + "_cloud.ply"),
                            geometry::PointCloud{points, {}});
-            if (coarse.ok) io::WriteMesh(options.export_dir / (stem + "_coarse.ply"), coarse.mesh);
-            if (coarse.ok && dense.ok)
-              io::WriteMesh(options.export_dir / (stem + "_full.ply"), dense.mesh);
+            const auto coarse_file = options.export_dir / (stem + "_coarse.ply");
+            const auto full_file = options.export_dir / (stem + "_full.ply");
+            std::filesystem::remove(coarse_file);
+            std::filesystem::remove(full_file);
+            if (coarse.ok) io::WriteMesh(coarse_file, coarse.mesh);
+            if (coarse.ok && dense.ok) io::WriteMesh(full_file, dense.mesh);
           }
           ++done;
           std::fprintf(stderr,

@@ -45,7 +45,8 @@ struct ShapeBenchOptions {
   /// When set, written there as PLY: each shape's template and source poses, each pair's
   /// posed template (the truth) in the model's frame and placed as its targets are, and each
   /// morph's cloud with its coarse and full morphs (`<shape>_<pair>_<sigma>mm_<variant>_cloud`,
-  /// `_coarse`, `_full`). Vertex i of every posed template and morph is vertex i of its template.
+  /// `_coarse`, `_full`; a stage that failed writes none). Vertex i of every posed template and
+  /// morph is vertex i of its template. Files already there are overwritten, others kept.
   std::filesystem::path export_dir;
   /// CGAL alpha wrap of the third-party models, fractions of their bounding-box diagonal.
   double wrap_alpha = WrapOptions{}.alpha;

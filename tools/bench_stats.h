@@ -47,6 +47,13 @@ inline std::string FormatMm(double mm) {
   return text;
 }
 
+/// @p mm as part of a file's name: "4mm" or "0.5mm".
+inline std::string MmLabel(double mm) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%gmm", mm);
+  return text;
+}
+
 /// One progress line on stderr per finished step of a long benchmark, so that a run of
 /// minutes says how far it is: "[12/96, 41 s, about 287 s left] bench full: cloud sigma 4 mm #2".
 /// The time left is the mean time per step so far times the steps left.
