@@ -690,9 +690,8 @@ int RunShapeBench(const ShapeBenchOptions& options) {
           }
           if (!options.export_dir.empty()) {
             // The cloud as the morph got it and what the two stages made of it, in the target's
-            // frame: vertex i of each morph is vertex i of the placed truth.
-            // A stage that failed writes nothing, and a file an earlier run left in its place
-            // goes.
+            // frame: vertex i of each morph is vertex i of the placed truth. A stage that failed
+            // writes nothing, and a file an earlier run left in its place goes.
             const std::string stem =
                 c.name + "_" + target.pair + "_" + MmLabel(sigma_mm) + "_" + variant;
             io::WriteCloud(options.export_dir / (stem + "_cloud.ply"),

@@ -46,7 +46,8 @@ struct ShapeBenchOptions {
   /// posed template (the truth) in the model's frame and placed as its targets are, and each
   /// morph's cloud with its coarse and full morphs (`<shape>_<pair>_<sigma>mm_<variant>_cloud`,
   /// `_coarse`, `_full`; a stage that failed writes none). Vertex i of every posed template and
-  /// morph is vertex i of its template. Files already there are overwritten, others kept.
+  /// morph is vertex i of its template. Files already there are overwritten (a failed stage's
+  /// removed), others kept.
   std::filesystem::path export_dir;
   /// CGAL alpha wrap of the third-party models, fractions of their bounding-box diagonal.
   double wrap_alpha = WrapOptions{}.alpha;
