@@ -64,7 +64,7 @@ for want in "READY=1" "STATUS=\(ready\|morphing\)[^;]*; cameras 2 of 2 ok" "WATC
 done
 # The status shows the memory budget (not in sanitizer builds, which have none).
 if ! grep -q "no memory budget in this build" "$work/daemon.log"; then
-  grep -q "STATUS=\(ready\|morphing\);.*; memory [0-9]* of 512 MiB, 0 from the heap;" \
+  grep -q "STATUS=\(ready\|morphing\)[^;]*;.*; memory [0-9]* of 512 MiB, 0 from the heap;" \
     "$work/notify.log" || { echo "FAIL: no memory budget in STATUS="; cat "$work/notify.log"; exit 1; }
 fi
 echo "ok: READY=1, STATUS= (with the memory budget), WATCHDOG=1 and STOPPING=1 over NOTIFY_SOCKET"
