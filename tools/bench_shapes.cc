@@ -430,6 +430,54 @@ std::vector<BenchCase> BuildCases(const ShapeBenchOptions& options,
   return cases;
 }
 
+// The names --export writes, per shape, pair and morph (each + ".ply"; a morph's stem takes
+// "_cloud", "_coarse" or "_full").
+std::string TemplateName(const BenchCase& c) { return c.name + "_template"; }
+std::string SourceName(const BenchCase& c, std::size_t k) {
+  return c.name + "_source_" + c.source_labels[k];
+}
+std::string TruthName(const BenchCase& c, std::size_t t) {
+  return c.name + "_" + c.targets[t].pair;
+}
+std::string PlacedName(const BenchCase& c, std::size_t t) { return TruthName(c, t) + "_placed"; }
+std::string MorphStem(const BenchCase& c, std::size_t t, double sigma_mm,
+                      const std::string& variant) {
+  return TruthName(c, t) + "_" + MmLabel(sigma_mm) + "_" + variant;
+}
+
+// @throws InputError when two files of one --export run would have the same name (noise
+// levels that print alike, or a shape's name or a pair's label holding '_'), before anything
+// is morphed.
+void CheckExportNames(const std::vector<BenchCase>& cases, const ShapeBenchOptions& options) {
+  std::map<std::string, std::string> owner;  // file name -> what it holds
+  auto claim = [&](const std::string& name, const std::string& what) {
+    const auto [at, fresh] = owner.emplace(name, what);
+    if (!fresh)
+      throw InputError("bench shapes --export: " + what + " and " + at->second +
+                       " would both be written as " + io::Excerpt(name) +
+                       ".ply (noise levels alike to 6 digits, or names joined by '_' that read "
+                       "alike)");
+  };
+  for (const BenchCase& c : cases) {
+    claim(TemplateName(c), "shape " + c.name + "'s template");
+    for (std::size_t k = 0; k < c.source_labels.size(); ++k)
+      claim(SourceName(c, k), "shape " + c.name + "'s source " + c.source_labels[k]);
+    for (std::size_t t = 0; t < c.targets.size(); ++t) {
+      const std::string pair = "shape " + c.name + "'s pair " + c.targets[t].pair;
+      claim(TruthName(c, t), pair);
+      claim(PlacedName(c, t), pair + " (placed)");
+      for (double sigma_mm : options.sigmas_mm) {
+        for (const std::string& variant : options.variants) {
+          const std::string stem = MorphStem(c, t, sigma_mm, variant);
+          for (const char* part : {"_cloud", "_coarse", "_full"})
+            claim(stem + part,
+                  pair + " at " + FormatMm(sigma_mm) + " " + variant + " (" + (part + 1) + ")");
+        }
+      }
+    }
+  }
+}
+
 // Runs @p argv (no shell) and returns its exit status, or -1 when it could not run.
 int RunProgram(const std::vector<std::string>& argv) {
   std::vector<char*> args;
@@ -509,7 +557,10 @@ int RunShapeBench(const ShapeBenchOptions& options) {
       std::filesystem::remove(examples / (c.name + "_" + part + ".xyz"));
     }
   }
-  if (!options.export_dir.empty()) std::filesystem::create_directories(options.export_dir);
+  if (!options.export_dir.empty()) {
+    CheckExportNames(cases, options);
+    std::filesystem::create_directories(options.export_dir);
+  }
 
   int total = 0;
   for (const BenchCase& c : cases) {
@@ -533,11 +584,11 @@ int RunShapeBench(const ShapeBenchOptions& options) {
                  c.name.c_str(), options.template_features.c_str(), model.features.num_terminals(),
                  model.features.num_junctions(), model.seconds);
     if (!options.export_dir.empty()) {
-      io::WriteMesh(options.export_dir / (c.name + "_template.ply"), c.template_mesh);
+      io::WriteMesh(options.export_dir / (TemplateName(c) + ".ply"), c.template_mesh);
       for (std::size_t k = 0; k < c.source_labels.size(); ++k) {
         geometry::TriangleMesh source = k == 0 ? c.rest_source : c.scanned[k - 1];
         source.N = geometry::VertexNormals(source);
-        io::WriteMesh(options.export_dir / (c.name + "_source_" + c.source_labels[k] + ".ply"), source);
+        io::WriteMesh(options.export_dir / (SourceName(c, k) + ".ply"), source);
       }
     }
     for (std::size_t t = 0; t < c.targets.size(); ++t) {
@@ -546,7 +597,7 @@ int RunShapeBench(const ShapeBenchOptions& options) {
       truth_mesh.V = target.V;
       truth_mesh.N = geometry::VertexNormals(truth_mesh);
       if (!options.export_dir.empty()) {
-        io::WriteMesh(options.export_dir / (c.name + "_" + target.pair + ".ply"), truth_mesh);
+        io::WriteMesh(options.export_dir / (TruthName(c, t) + ".ply"), truth_mesh);
       }
       // One placement, one sample of the scanned surface and one shadow per pair, the same at
       // every noise level and in both variants, so that rows differ only in what they name.
@@ -562,7 +613,7 @@ int RunShapeBench(const ShapeBenchOptions& options) {
       placed.N = X.linear() * truth_mesh.N;
       // What the morphs below are scored against, in their frame.
       if (!options.export_dir.empty())
-        io::WriteMesh(options.export_dir / (c.name + "_" + target.pair + "_placed.ply"), placed);
+        io::WriteMesh(options.export_dir / (PlacedName(c, t) + ".ply"), placed);
       Eigen::Matrix3Xd clean_points, normals;
       try {
         geometry::SampleSurface(c.scanned[t], options.points, [&] { return sample_random.Uniform(); },
@@ -692,8 +743,7 @@ int RunShapeBench(const ShapeBenchOptions& options) {
             // The cloud as the morph got it and what the two stages made of it, in the target's
             // frame: vertex i of each morph is vertex i of the placed truth. A stage that failed
             // writes nothing, and a file an earlier run left in its place goes.
-            const std::string stem =
-                c.name + "_" + target.pair + "_" + MmLabel(sigma_mm) + "_" + variant;
+            const std::string stem = MorphStem(c, t, sigma_mm, variant);
             io::WriteCloud(options.export_dir / (stem + "_cloud.ply"),
                            geometry::PointCloud{points, {}});
             const auto coarse_file = options.export_dir / (stem + "_coarse.ply");
@@ -705,11 +755,12 @@ int RunShapeBench(const ShapeBenchOptions& options) {
           }
           ++done;
           std::fprintf(stderr,
-                       "[%d/%d %.0f s] %s %s sigma %.0f mm %s: rigid bound %.2f %%, coarse %.2f %%, "
+                       "[%d/%d %.0f s] %s %s sigma %s %s: rigid bound %.2f %%, coarse %.2f %%, "
                        "full %.2f %% (max %.2f %%) in %.1f s%s%s\n",
-                       done, total, Since(bench_start), c.name.c_str(), target.pair.c_str(), sigma_mm,
-                       variant.c_str(), 100 * bound.mean_err_rel, 100 * coarse_row.mean_err_rel,
-                       100 * full_row.mean_err_rel, 100 * full_row.max_err_rel, full_row.seconds,
+                       done, total, Since(bench_start), c.name.c_str(), target.pair.c_str(),
+                       FormatMm(sigma_mm).c_str(), variant.c_str(), 100 * bound.mean_err_rel,
+                       100 * coarse_row.mean_err_rel, 100 * full_row.mean_err_rel,
+                       100 * full_row.max_err_rel, full_row.seconds,
                        error.empty() ? "" : " FAILED ", error.c_str());
           for (Row* r : {&identity, &bound, &coarse_row, &full_row}) rows.push_back(*r);
         }
@@ -770,11 +821,13 @@ int RunShapeBench(const ShapeBenchOptions& options) {
           }
         }
         if (pairs == 0) continue;
-        std::printf("| %s | %s | %s | %.0f | %d | %.0f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %d | %d | %.1f |\n",
-                    c.name.c_str(), c.family.c_str(), variant.c_str(), sigma_mm, pairs, Median(pose),
-                    100 * Median(mean["identity"]), 100 * Median(mean["rigid_bound"]),
-                    100 * Median(mean["coarse"]), 100 * Median(mean["full"]), 100 * Median(max["full"]),
-                    Median(ratio), failed, flips, Median(seconds["full"]));
+        std::printf(
+            "| %s | %s | %s | %g | %d | %.0f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %d | %d | "
+            "%.1f |\n",
+            c.name.c_str(), c.family.c_str(), variant.c_str(), sigma_mm, pairs, Median(pose),
+            100 * Median(mean["identity"]), 100 * Median(mean["rigid_bound"]),
+            100 * Median(mean["coarse"]), 100 * Median(mean["full"]), 100 * Median(max["full"]),
+            Median(ratio), failed, flips, Median(seconds["full"]));
       }
     }
   }

@@ -40,19 +40,15 @@ inline double TrueSize(const Eigen::Matrix3Xd& rest, const Eigen::Matrix3Xd& tru
          morph::Similarity::FromUmeyama(Eigen::umeyama(rest, truth, true)).scale;
 }
 
-/// @p mm as "4 mm" or "0.5 mm".
-inline std::string FormatMm(double mm) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g mm", mm);
+/// @p mm as "4 mm" or "0.5 mm" (printf's %g, then @p unit).
+inline std::string FormatMm(double mm, const char* unit = " mm") {
+  char text[40];
+  std::snprintf(text, sizeof text, "%g%s", mm, unit);
   return text;
 }
 
 /// @p mm as part of a file's name: "4mm" or "0.5mm".
-inline std::string MmLabel(double mm) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%gmm", mm);
-  return text;
-}
+inline std::string MmLabel(double mm) { return FormatMm(mm, "mm"); }
 
 /// One progress line on stderr per finished step of a long benchmark, so that a run of
 /// minutes says how far it is: "[12/96, 41 s, about 287 s left] bench full: cloud sigma 4 mm #2".

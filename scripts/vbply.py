@@ -1,0 +1,49 @@
+"""Reads the vertices of a PLY file as vbutcher and virtualbutcherd write them (io/ply_io.cc):
+ascii or binary little-endian, scalar vertex properties, x y z among them. Shared by
+scripts/plot-carcass, scripts/plot-bench and tests/tools/bench_shapes_test.sh. Needs numpy
+(python3-numpy, which python3-matplotlib brings)."""
+import numpy as np
+
+_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "<i2", "int16": "<i2",
+          "ushort": "<u2", "uint16": "<u2", "int": "<i4", "int32": "<i4", "uint": "<u4",
+          "uint32": "<u4", "float": "<f4", "float32": "<f4", "double": "<f8", "float64": "<f8"}
+
+
+def read_vertices(path):
+    """The vertices' x y z as an (n, 3) float64 array. Exits naming @p path on a file that is
+    not such a PLY."""
+    data = open(path, "rb").read()
+    marker = b"end_header\n"
+    if not data.startswith(b"ply\n") or marker not in data:
+        raise SystemExit(f"{path}: not a PLY file (no 'ply' line or no end_header)")
+    end = data.index(marker) + len(marker)
+    header = data[:end].decode("ascii", "replace").splitlines()
+    fmt = next((l.split()[1] for l in header if l.startswith("format ")), "")
+    count, props, in_vertex = None, [], False
+    for line in header:
+        words = line.split()
+        if words[:1] == ["element"]:
+            in_vertex = words[1:2] == ["vertex"]
+            if in_vertex:
+                count = int(words[2])
+        elif words[:1] == ["property"] and in_vertex:
+            if words[1] not in _TYPES:
+                raise SystemExit(f"{path}: vertex property '{line}' is not a scalar PLY type")
+            props.append((words[2], _TYPES[words[1]]))
+    names = [n for n, _ in props]
+    if count is None or not {"x", "y", "z"} <= set(names):
+        raise SystemExit(f"{path}: no vertex element with x, y and z")
+    if fmt == "ascii":
+        rows = data[end:].decode("ascii").splitlines()[:count]
+        values = np.array([r.split()[:len(names)] for r in rows], dtype=float).reshape(-1, len(names))
+    elif fmt == "binary_little_endian":
+        record = np.dtype([(n, t) for n, t in props])
+        if len(data) - end < count * record.itemsize:
+            raise SystemExit(f"{path}: {count} vertices announced, the file is shorter")
+        table = np.frombuffer(data, dtype=record, count=count, offset=end)
+        return np.stack([table[a].astype(float) for a in "xyz"], axis=1)
+    else:
+        raise SystemExit(f"{path}: PLY format '{fmt}' (ascii or binary_little_endian only)")
+    if len(values) != count:
+        raise SystemExit(f"{path}: {count} vertices announced, {len(values)} read")
+    return values[:, [names.index(a) for a in "xyz"]]
