@@ -416,6 +416,9 @@ void Pipeline::CaptureLoop() {
       newest_ns = std::max(newest_ns, f.host_time_ns);
     }
     const std::span<const perception::DepthView> set(views.data(), static_cast<std::size_t>(used));
+    // Not serving yet: a camera may still be starting, and a job made now would be refused
+    // for it.
+    if (!serving_) continue;
     // While a carcass that already became a job hangs there, only its departure or its
     // replacement matters: a sampled picture of the region (under a millisecond), not a
     // fusion, so the cores stay with the morph. It has left once the readings stay under a

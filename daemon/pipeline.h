@@ -58,6 +58,11 @@ class Pipeline {
   /// Opens the cameras and starts the threads. @throws std::runtime_error when OpenNI2
   /// cannot start.
   void Start();
+  /// From now on a carcass may become a job: before, frames are read and cameras watched, but
+  /// what hangs in view is not looked at (the daemon calls this as it sends READY=1, once every
+  /// camera is ok or found missing). A carcass already hanging then becomes a job after
+  /// job.settle_sets frame sets, like one that has just arrived.
+  void Serve() { serving_ = true; }
   /// Shutdown begins: no job goes to the saw from now on (a morph under way is abandoned and
   /// its job refused), then the threads are joined. Safe to call twice.
   void Stop();
@@ -124,6 +129,7 @@ class Pipeline {
   std::unique_ptr<perception::Fusion> fusion_;
 
   std::atomic<bool> stop_{false};
+  std::atomic<bool> serving_{false};  // Serve()
   std::thread capture_thread_, job_thread_;
   std::atomic<std::int64_t> capture_alive_ns_{0}, job_alive_ns_{0};
   std::atomic<std::int64_t> job_started_ns_{0};  // while busy_

@@ -184,7 +184,7 @@ int main(int argc, char** argv) {
   // READY=1 once every camera has either delivered a frame or been found missing (at most
   // first_frame_timeout_ms, and never over 20 s: the unit's TimeoutStartSec is 30 s): the
   // daemon then serves, degraded if a camera is not ok, and says so in STATUS, the log and
-  // VB_STATUS. Jobs go out only from healthy frame sets.
+  // VB_STATUS. Jobs go out only from healthy frame sets, and none starts before READY=1.
   {
     const auto settle_until =
         std::chrono::steady_clock::now() +
@@ -204,6 +204,9 @@ int main(int argc, char** argv) {
   if (!all_cameras)
     Log(Priority::kWarning, "serving DEGRADED: %s; a carcass is refused while a camera is down",
         cameras.c_str());
+  else
+    Log(Priority::kInfo, "serving: %s", cameras.c_str());
+  pipeline->Serve();  // no carcass becomes a job before READY=1
   notifier.Ready(pipeline->StatusLine());
   const vb::daemon::MemoryBudgetScope budget;  // the main loop allocates from the arena too
 
