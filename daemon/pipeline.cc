@@ -473,8 +473,7 @@ void Pipeline::CaptureLoop() {
     if (cloud.size >= config_.job.presence_min_points) {
       present_sets = still ? present_sets + 1 : 0;
       // The job is made from this frame set: a camera unhealthy in it refuses the job, one
-      // that was unhealthy in an earlier set of the settling and is fresh now (cameras still
-      // starting when the service starts beside a hanging carcass) does not.
+      // that was unhealthy in an earlier set of the settling and is fresh now does not.
       capture_fault.clear();  // keeps its capacity: no allocation
       if (stale_camera >= 0) {
         capture_fault = "camera ";

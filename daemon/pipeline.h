@@ -59,9 +59,9 @@ class Pipeline {
   /// cannot start.
   void Start();
   /// From now on a carcass may become a job: before, frames are read and cameras watched, but
-  /// what hangs in view is not looked at (the daemon calls this as it sends READY=1, once every
-  /// camera is ok or found missing). A carcass already hanging then becomes a job after
-  /// job.settle_sets frame sets, like one that has just arrived.
+  /// what hangs in view is not looked at. The daemon calls this just after READY=1, sent once
+  /// every camera is ok or found missing, or when capture.first_frame_timeout_ms has passed. A
+  /// carcass already hanging is then taken as one that has just arrived.
   void Serve() { serving_ = true; }
   /// Shutdown begins: no job goes to the saw from now on (a morph under way is abandoned and
   /// its job refused), then the threads are joined. Safe to call twice.

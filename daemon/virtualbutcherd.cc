@@ -201,13 +201,17 @@ int main(int argc, char** argv) {
   const std::string cameras = pipeline->CameraSummary();
   const bool all_cameras = pipeline->CamerasSettled() &&
                            cameras.find(" (") == std::string::npos;
-  if (!all_cameras)
+  if (g_signal != 0) {
+    // Stopped while settling: READY=1 still goes (systemd then sees the stop), no job.
+  } else if (!all_cameras) {
     Log(Priority::kWarning, "serving DEGRADED: %s; a carcass is refused while a camera is down",
         cameras.c_str());
-  else
+  } else {
     Log(Priority::kInfo, "serving: %s", cameras.c_str());
-  pipeline->Serve();  // no carcass becomes a job before READY=1
+  }
   notifier.Ready(pipeline->StatusLine());
+  // No carcass becomes a job before READY=1.
+  if (g_signal == 0) pipeline->Serve();
   const vb::daemon::MemoryBudgetScope budget;  // the main loop allocates from the arena too
 
   const auto start = std::chrono::steady_clock::now();

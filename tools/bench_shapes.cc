@@ -454,7 +454,7 @@ void CheckExportNames(const std::vector<BenchCase>& cases, const ShapeBenchOptio
     const auto [at, fresh] = owner.emplace(name, what);
     if (!fresh)
       throw InputError("bench shapes --export: " + what + " and " + at->second +
-                       " would both be written as " + io::Excerpt(name) +
+                       " would both be written as " + io::Excerpt(name, 200) +
                        ".ply (noise levels alike to 6 digits, or names joined by '_' that read "
                        "alike)");
   };
@@ -467,11 +467,12 @@ void CheckExportNames(const std::vector<BenchCase>& cases, const ShapeBenchOptio
       claim(TruthName(c, t), pair);
       claim(PlacedName(c, t), pair + " (placed)");
       for (double sigma_mm : options.sigmas_mm) {
+        char sigma[40];  // every digit: two levels alike in MmLabel differ here
+        std::snprintf(sigma, sizeof sigma, "%.17g mm", sigma_mm);
         for (const std::string& variant : options.variants) {
           const std::string stem = MorphStem(c, t, sigma_mm, variant);
           for (const char* part : {"_cloud", "_coarse", "_full"})
-            claim(stem + part,
-                  pair + " at " + FormatMm(sigma_mm) + " " + variant + " (" + (part + 1) + ")");
+            claim(stem + part, pair + " at " + sigma + " " + variant + " (" + (part + 1) + ")");
         }
       }
     }

@@ -47,7 +47,8 @@ struct ShapeBenchOptions {
   /// morph's cloud with its coarse and full morphs (`<shape>_<pair>_<sigma>mm_<variant>_cloud`,
   /// `_coarse`, `_full`; a stage that failed writes none). Vertex i of every posed template and
   /// morph is vertex i of its template. Files already there are overwritten (a failed stage's
-  /// removed), others kept.
+  /// removed), others kept. A run two of whose files would have the same name (noise levels
+  /// alike to 6 digits, names joined by '_' that read alike) is refused before any morph.
   std::filesystem::path export_dir;
   /// CGAL alpha wrap of the third-party models, fractions of their bounding-box diagonal.
   double wrap_alpha = WrapOptions{}.alpha;

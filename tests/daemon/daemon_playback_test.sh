@@ -2,10 +2,11 @@
 # virtualbutcherd on recordings, as a test engineer runs it on .oni files from a rig: the
 # virtual rig is recorded with a carcass already on the hook (vbutcher record), then the
 # service starts on the playback calibration alone (no virtual scene) and must make that
-# carcass a job the saw accepts, though its cameras start while the carcass hangs there.
-# The verdict is the in-process saw controller's, read from the log. Which camera is still
-# starting when the first frame sets come is a matter of timing: the rule this guards (a job
-# judged by the frame set it is made from) failed 2 of 3 starts here before it was fixed.
+# carcass a job the saw accepts, though its cameras start while the carcass hangs there: it
+# is taken once the daemon serves (READY=1). The verdict is the in-process saw controller's,
+# read from the log. The rule that a job is judged by the frame set it is made from (not by a
+# camera's state in earlier sets) failed 2 of 3 starts here before it was fixed, when jobs
+# could start while a camera was still starting.
 # Usage: daemon_playback_test.sh <vbutcher> <virtualbutcherd>
 set -euo pipefail
 vbutcher=$(realpath "$1")

@@ -5,8 +5,8 @@
 # carcasses, each hung once the one before has its verdict (paced_line), a restart of the
 # daemon halfway (its job numbers kept in its state file), then the rest. Every job the daemon
 # sent must be one the saw accepted, by the saw's own counters, and the daemon's verdicts must
-# say the same, with none refused: the first carcass of each daemon life is hung while its
-# cameras start, and becomes a job only once the daemon serves (READY=1).
+# say the same, with none refused: the first carcass of each daemon life is hung as it starts
+# (its cameras may still be starting) and becomes a job only once the daemon serves (READY=1).
 # Usage: saw_verdict_test.sh <vbutcher> <virtualbutcherd> [CARCASSES]
 set -euo pipefail
 vbutcher=$(realpath "$1")
@@ -47,8 +47,8 @@ run_daemon() {
   grep -q "stopped after $2 jobs" "$work/daemon$1.log" || fail "daemon $1 did not do its $2 jobs"
   # No job before the daemon serves: its first carcass was hung as it started.
   local serving job
-  serving=$(grep -n "virtualbutcherd: serving" "$work/daemon$1.log" | head -1 | cut -d: -f1)
-  job=$(grep -n "C[0-9]*: \(morphing\|saw verdict\)" "$work/daemon$1.log" | head -1 | cut -d: -f1)
+  serving=$(grep -n -m1 "virtualbutcherd: serving" "$work/daemon$1.log" | cut -d: -f1 || true)
+  job=$(grep -n -m1 "C[0-9]*: \(morphing\|saw verdict\)" "$work/daemon$1.log" | cut -d: -f1 || true)
   [ -n "$serving" ] && [ -n "$job" ] && [ "$serving" -lt "$job" ] ||
     fail "daemon $1: its first job (log line ${job:-none}) came before it served (${serving:-none})"
 }
