@@ -185,13 +185,15 @@ int main(int argc, char** argv) {
   // first_frame_timeout_ms, and never over 20 s: the unit's TimeoutStartSec is 30 s): the
   // daemon then serves, degraded if a camera is not ok, and says so in STATUS, the log and
   // VB_STATUS. Jobs go out only from healthy frame sets, and none starts before READY=1.
+  // SIGTERM or SIGINT: stop. SIGHUP and SIGUSR1 wait for the main loop.
+  const auto stop_asked = [] { return g_signal == SIGTERM || g_signal == SIGINT; };
   {
     const auto settle_until =
         std::chrono::steady_clock::now() +
         std::chrono::milliseconds(std::min(config.capture.first_frame_timeout_ms + 500, 20000));
     auto next = std::chrono::steady_clock::now();
     while (!pipeline->CamerasSettled() && std::chrono::steady_clock::now() < settle_until &&
-           g_signal == 0) {
+           !stop_asked()) {
       next += std::chrono::milliseconds(vb::io::saw::kHeartbeatPeriodMs);
       std::this_thread::sleep_until(next);
       pipeline->Tick();
@@ -201,17 +203,17 @@ int main(int argc, char** argv) {
   const std::string cameras = pipeline->CameraSummary();
   const bool all_cameras = pipeline->CamerasSettled() &&
                            cameras.find(" (") == std::string::npos;
-  if (g_signal != 0) {
-    // Stopped while settling: READY=1 still goes (systemd then sees the stop), no job.
-  } else if (!all_cameras) {
+  // Asked to stop while settling: READY=1 still goes (systemd then sees the stop), no job.
+  const bool stopping = stop_asked();
+  if (!stopping && !all_cameras) {
     Log(Priority::kWarning, "serving DEGRADED: %s; a carcass is refused while a camera is down",
         cameras.c_str());
-  } else {
+  } else if (!stopping) {
     Log(Priority::kInfo, "serving: %s", cameras.c_str());
   }
   notifier.Ready(pipeline->StatusLine());
   // No carcass becomes a job before READY=1.
-  if (g_signal == 0) pipeline->Serve();
+  if (!stopping) pipeline->Serve();
   const vb::daemon::MemoryBudgetScope budget;  // the main loop allocates from the arena too
 
   const auto start = std::chrono::steady_clock::now();
