@@ -763,7 +763,9 @@ bool Pipeline::Tick() {
     rig_check_running_ = true;
     rig_check_thread_ = std::thread([this] { RigCheck(); });
   }
-  saw_->SendHeartbeat(state, uptime_ms_);
+  // Until it serves, the saw hears DEGRADED (it refuses jobs), never READY.
+  const bool starting = !serving_ && state != io::saw::DaemonState::kFault;
+  saw_->SendHeartbeat(starting ? io::saw::DaemonState::kDegraded : state, uptime_ms_);
   uptime_ms_ += io::saw::kHeartbeatPeriodMs;
   saw_->Poll();
   if (Clock::now() >= next_status_) {
@@ -798,8 +800,10 @@ void Pipeline::PublishStatus() {
     s.cameras.push_back(h);
   }
   s.num_cameras = static_cast<std::int8_t>(s.cameras.size());
-  s.state = LcmState(state_.load());
-  s.state_text = StatusLineLocked();
+  const io::saw::DaemonState state = state_.load();
+  const bool starting = !serving_ && state != io::saw::DaemonState::kFault;
+  s.state = starting ? vbutcher::status_t::STARTING : LcmState(state);
+  s.state_text = StatusLineLocked(starting);
   s.version = version_;
   s.rig_check = rig_check_line_;
   s.can_state = saw_->link_state();
@@ -816,7 +820,7 @@ void Pipeline::PublishStatus() {
 
 std::string Pipeline::StatusLine() const {
   std::lock_guard<std::mutex> lock(state_mutex_);
-  return StatusLineLocked();
+  return StatusLineLocked(false);
 }
 
 std::string Pipeline::CameraSummaryLocked() const {
@@ -863,7 +867,7 @@ void Pipeline::Diagnose(std::int8_t level, const std::string& source, const std:
     Log(Priority::kWarning, "diagnostic not published: %s", publisher_->last_error().c_str());
 }
 
-std::string Pipeline::StatusLineLocked() const {
+std::string Pipeline::StatusLineLocked(bool starting) const {
   // The memory budget, for operators (lcm-spy, systemctl status): heap allocations above 0
   // mean memory.arena_mib is too small.
   const MemoryBudgetStats memory = GetMemoryBudgetStats();
@@ -877,11 +881,12 @@ std::string Pipeline::StatusLineLocked() const {
   std::snprintf(line, sizeof(line),
                 "%s%s%s; %s; jobs accepted %ld, rejected %ld, unconfirmed %ld, refused %ld%s; "
                 "last %s: %s%s%s",
-                LogSimulation() ? "SIMULATION; " : "", StateName(state),
-                state == io::saw::DaemonState::kFault || busy_.load() ? ""
-                                                                      : ", waiting for a carcass",
-                CameraSummaryLocked().c_str(), verdicts_.accepted,
-                verdicts_.rejected, verdicts_.unconfirmed, verdicts_.refused, budget,
+                LogSimulation() ? "SIMULATION; " : "", starting ? "starting" : StateName(state),
+                starting ? ", waiting for the cameras"
+                : state == io::saw::DaemonState::kFault || busy_.load() ? ""
+                                                                        : ", waiting for a carcass",
+                CameraSummaryLocked().c_str(), verdicts_.accepted, verdicts_.rejected,
+                verdicts_.unconfirmed, verdicts_.refused, budget,
                 last_.carcass_id.empty() ? "-" : last_.carcass_id.c_str(),
                 last_.carcass_id.empty() ? "-" : ToString(last_.verdict),
                 last_.reason.empty() ? "" : ": ", last_.reason.c_str());

@@ -76,7 +76,8 @@ class Pipeline {
   /// Jobs finished so far (for the daemon's log and tests); each is reported once.
   std::vector<JobReport> TakeReports();
   /// One line for systemctl status and VB_STATUS: [SIMULATION; ]state; cameras (which are
-  /// not ok and why); job counters; memory; the last job.
+  /// not ok and why); job counters; memory; the last job. The state is the one the daemon
+  /// serves in (READY=1's status is made just before Serve()).
   std::string StatusLine() const;
   /// "cameras 3 of 4 ok (cam0 missing: cannot open the device)".
   std::string CameraSummary() const;
@@ -112,7 +113,8 @@ class Pipeline {
   void PublishStatus();
   void Dump(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
             const morph::CarcassResult& result, const JobReport& report) const;
-  std::string StatusLineLocked() const;
+  // @p starting: "starting, waiting for the cameras" in place of a state other than FAULT.
+  std::string StatusLineLocked(bool starting) const;
   std::string CameraSummaryLocked() const;
   // One event on VB_DIAGNOSTICS (level: vbutcher::diagnostic_t::INFO, WARNING or ERROR).
   void Diagnose(std::int8_t level, const std::string& source, const std::string& text);

@@ -13,6 +13,11 @@ CameraFault VirtualScene::fault(const std::string& serial) const {
   return it == faults.end() ? CameraFault::kNone : it->second;
 }
 
+int VirtualScene::start_delay(const std::string& serial) const {
+  const auto it = start_delays_ms.find(serial);
+  return it == start_delays_ms.end() ? start_delay_ms : it->second;
+}
+
 const char* ToString(CameraFault fault) {
   switch (fault) {
     case CameraFault::kNone:
@@ -45,6 +50,22 @@ VirtualScene LoadVirtualScene(const std::filesystem::path& path) {
   if (root["fps"]) scene.fps = r.IntInRange(root["fps"], "fps", 1, 120);
   if (root["start_delay_ms"])
     scene.start_delay_ms = r.IntInRange(root["start_delay_ms"], "start_delay_ms", 0, 10000);
+  // Per serial, for a serial the rig has.
+  const auto check_serial = [&](const YAML::Node& key, const std::string& what,
+                                const std::string& serial) {
+    for (const CameraCalibration& cam : scene.rig.cameras)
+      if (cam.serial == serial) return;
+    r.Fail(key, what, "the rig has no camera with serial '" + serial + "'");
+  };
+  if (const YAML::Node delays = root["start_delays_ms"]) {
+    if (!delays.IsMap()) r.Fail(delays, "start_delays_ms", "expected a mapping of serial: ms");
+    for (const auto& entry : delays) {
+      const std::string serial = entry.first.as<std::string>();
+      const std::string key = "start_delays_ms." + serial;
+      check_serial(entry.first, key, serial);
+      scene.start_delays_ms[serial] = r.IntInRange(entry.second, key, 0, 10000);
+    }
+  }
   if (root["floor_z_m"]) scene.floor_z_m = r.InRange(root["floor_z_m"], "floor_z_m", -20, 20);
   if (const YAML::Node noise = root["noise"]) {
     if (!noise.IsMap()) r.Fail(noise, "noise", "expected a mapping");
@@ -56,9 +77,7 @@ VirtualScene LoadVirtualScene(const std::filesystem::path& path) {
     for (const auto& entry : faults) {
       const std::string serial = entry.first.as<std::string>();
       const std::string key = "faults." + serial;
-      bool known = false;
-      for (const CameraCalibration& cam : scene.rig.cameras) known |= cam.serial == serial;
-      if (!known) r.Fail(entry.first, key, "the rig has no camera with serial '" + serial + "'");
+      check_serial(entry.first, key, serial);
       const auto name = r.Scalar<std::string>(entry.second, key);
       if (name == "none") {
         scene.faults[serial] = CameraFault::kNone;
@@ -86,6 +105,12 @@ void SaveVirtualScene(const std::filesystem::path& path, const VirtualScene& sce
   out << YAML::Key << "fps" << YAML::Value << scene.fps;
   if (scene.start_delay_ms != 0)
     out << YAML::Key << "start_delay_ms" << YAML::Value << scene.start_delay_ms;
+  if (!scene.start_delays_ms.empty()) {
+    out << YAML::Key << "start_delays_ms" << YAML::Value << YAML::Flow << YAML::BeginMap;
+    for (const auto& [serial, ms] : scene.start_delays_ms)
+      out << YAML::Key << serial << YAML::Value << ms;
+    out << YAML::EndMap;
+  }
   if (scene.floor_z_m) out << YAML::Key << "floor_z_m" << YAML::Value << *scene.floor_z_m;
   out << YAML::Key << "noise" << YAML::Value << YAML::Flow << YAML::BeginMap;
   out << YAML::Key << "enabled" << YAML::Value << scene.noise.enabled;

@@ -28,6 +28,7 @@ enum class CameraFault {
 /// carcass: carcass.ply     # mesh in the rig frame; optional (an empty hook)
 /// fps: 30
 /// start_delay_ms: 0        # optional: a stream's first frame comes this much later (ms)
+/// start_delays_ms: {VB0002: 2500}  # optional, per serial: replaces start_delay_ms for it
 /// floor_z_m: -2.2          # optional floor plane
 /// noise: {enabled: true, seed: 1}
 /// faults: {VB0002: frozen} # per serial: none | frozen | missing
@@ -39,12 +40,15 @@ struct VirtualScene {
   std::filesystem::path carcass_path;  ///< empty: nothing on the hook
   int fps = 30;
   int start_delay_ms = 0;  ///< ms from a stream's start to one frame period before its first frame
+  std::map<std::string, int> start_delays_ms;  ///< by serial, in place of start_delay_ms
   std::optional<double> floor_z_m;
   DepthNoiseOptions noise;
   std::uint64_t seed = 1;
   std::map<std::string, CameraFault> faults;  ///< by serial
 
   CameraFault fault(const std::string& serial) const;
+  /// The start delay of the camera with @p serial (ms).
+  int start_delay(const std::string& serial) const;
 };
 
 /// @throws InputError naming file, line, key and value for anything wrong, including faults

@@ -34,12 +34,13 @@ def _read(path):
     count = int(elements[0][2])
     if count < 0:
         raise SystemExit(f"{path}: element vertex {count}: a negative count")
-    props, in_vertex = [], False
-    for line in header:
+    props = []
+    first = next(i for i, l in enumerate(header) if l.startswith("element "))
+    for line in header[first + 1:]:
         words = line.split()
         if words[:1] == ["element"]:
-            in_vertex = words[1:2] == ["vertex"]
-        elif words[:1] == ["property"] and in_vertex:
+            break  # the vertex element's properties end here
+        if words[:1] == ["property"]:
             if len(words) != 3 or words[1] not in _TYPES:
                 raise SystemExit(f"{path}: vertex property '{line}' is not a scalar PLY type")
             props.append((words[2], _TYPES[words[1]]))

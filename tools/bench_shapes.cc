@@ -430,8 +430,7 @@ std::vector<BenchCase> BuildCases(const ShapeBenchOptions& options,
   return cases;
 }
 
-// The names --export writes, per shape, pair and morph (each + ".ply"; a morph's stem takes
-// "_cloud", "_coarse" or "_full").
+// The names --export writes, per shape, pair and morph (each + ".ply").
 std::string TemplateName(const BenchCase& c) { return c.name + "_template"; }
 std::string SourceName(const BenchCase& c, std::size_t k) {
   return c.name + "_source_" + c.source_labels[k];
@@ -444,6 +443,9 @@ std::string MorphStem(const BenchCase& c, std::size_t t, double sigma_mm,
                       const std::string& variant) {
   return TruthName(c, t) + "_" + MmLabel(sigma_mm) + "_" + variant;
 }
+// What one morph writes under its stem: the cloud it got and what each stage made of it.
+constexpr const char* kMorphParts[] = {"cloud", "coarse", "full"};
+std::string MorphFile(const std::string& stem, const char* part) { return stem + "_" + part; }
 
 // @throws InputError when two files of one --export run would have the same name (noise
 // levels that print alike, or a shape's name or a pair's label holding '_'), before anything
@@ -471,8 +473,8 @@ void CheckExportNames(const std::vector<BenchCase>& cases, const ShapeBenchOptio
         std::snprintf(sigma, sizeof sigma, "%.17g mm", sigma_mm);
         for (const std::string& variant : options.variants) {
           const std::string stem = MorphStem(c, t, sigma_mm, variant);
-          for (const char* part : {"_cloud", "_coarse", "_full"})
-            claim(stem + part, pair + " at " + sigma + " " + variant + " (" + (part + 1) + ")");
+          for (const char* part : kMorphParts)
+            claim(MorphFile(stem, part), pair + " at " + sigma + " " + variant + " (" + part + ")");
         }
       }
     }
@@ -745,10 +747,12 @@ int RunShapeBench(const ShapeBenchOptions& options) {
             // frame: vertex i of each morph is vertex i of the placed truth. A stage that failed
             // writes nothing, and a file an earlier run left in its place goes.
             const std::string stem = MorphStem(c, t, sigma_mm, variant);
-            io::WriteCloud(options.export_dir / (stem + "_cloud.ply"),
-                           geometry::PointCloud{points, {}});
-            const auto coarse_file = options.export_dir / (stem + "_coarse.ply");
-            const auto full_file = options.export_dir / (stem + "_full.ply");
+            auto file = [&](const char* part) {
+              return options.export_dir / (MorphFile(stem, part) + ".ply");
+            };
+            io::WriteCloud(file("cloud"), geometry::PointCloud{points, {}});
+            const auto coarse_file = file("coarse");
+            const auto full_file = file("full");
             std::filesystem::remove(coarse_file);
             std::filesystem::remove(full_file);
             if (coarse.ok) io::WriteMesh(coarse_file, coarse.mesh);

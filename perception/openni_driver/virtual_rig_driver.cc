@@ -244,9 +244,10 @@ class DepthStream : public oni::driver::StreamBase {
     std::vector<std::uint16_t> image(static_cast<std::size_t>(k.width) * k.height, 0);
     std::uint64_t rendered_version = 0;
     const auto start = std::chrono::steady_clock::now();
-    // The first frame comes one frame period after start_delay_ms (stop() still returns
-    // promptly).
-    auto next = start + std::chrono::milliseconds(watcher_->Current()->scene.start_delay_ms);
+    // The first frame comes one frame period after the camera's start delay (stop() still
+    // returns promptly).
+    auto next = start + std::chrono::milliseconds(
+                            watcher_->Current()->scene.start_delay(calibration_.serial));
     while (running_ && std::chrono::steady_clock::now() < next)
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
     int index = 0;

@@ -5,7 +5,8 @@
 #  1. A camera missing at start: READY=1 comes once the cameras have settled, and STATUS, a
 #     warning in the log, VB_STATUS (DEGRADED, the camera MISSING) and VB_DIAGNOSTICS all
 #     name it; the camera that works reports its measured frame rate and last frame time.
-#  2. All cameras present: STATUS and VB_STATUS say ready; the version in VB_STATUS is the
+#  2. All cameras present, one starting 1.5 s after the other: VB_STATUS says STARTING until
+#     both have a frame, then STATUS and VB_STATUS say ready; the version in VB_STATUS is the
 #     one --version prints.
 #  3. simulation: true: every log line and the status say SIMULATION.
 #  4. The rig check: at start on an empty hook it says the target is not there; on SIGUSR1
@@ -40,6 +41,10 @@ config() {  # config <file> <rig> [extra line]
 printf 'vbutcher-job-state 1\ncarcass 0\nsequence 0\n' >"$work/job-state"
 config missing.yaml rig/rig_missing.yaml
 config good.yaml rig/rig.yaml
+# late.yaml: cam1 (VB0002) starts 1.5 s after cam0, within the 2 s for a first frame.
+cp "$work/rig/scene.yaml" "$work/rig/scene_late.yaml"
+echo "start_delays_ms: {VB0002: 1500}" >>"$work/rig/scene_late.yaml"
+sed 's#rig/scene.yaml#rig/scene_late.yaml#' "$work/good.yaml" >"$work/late.yaml"
 config sim.yaml rig/rig.yaml "simulation: true"
 
 notify_listener() {  # notify_listener <socket> <log>
@@ -141,12 +146,18 @@ awk -v f="${fps:-0}" -v lo=$floor 'BEGIN { exit !(f >= lo && f <= 33) }' ||
 [ -n "$ago" ] && [ "$ago" -lt 1000 ] || fail "cam0's last frame is not recent: $last"
 
 # 2. All cameras present (and the rig check at start, on an empty hook, has finished).
-run_until good good.yaml 1
+run_until good late.yaml 1
 grep -q "READY=1" "$work/good.notify.log" || fail "no READY=1"
 grep -q "STATUS=ready, waiting for a carcass; cameras 2 of 2 ok;" "$work/good.notify.log" ||
   fail "STATUS does not say ready with both cameras"
 grep -q "VB_STATUS seq .* state READY version .*($revision): ready" "$work/good.listen.txt" ||
   fail "VB_STATUS did not say READY with the revision"
+# While cam1 starts: STARTING, never READY before it.
+grep -q "VB_STATUS seq .* state STARTING .*: starting, waiting for the cameras; cameras 1 of 2 ok (cam1 starting)" \
+  "$work/good.listen.txt" || fail "VB_STATUS did not say STARTING while cam1 started"
+first_ready=$(grep -n "VB_STATUS seq .* state READY " "$work/good.listen.txt" | head -1 | cut -d: -f1)
+last_starting=$(grep -n "VB_STATUS seq .* state STARTING " "$work/good.listen.txt" | tail -1 | cut -d: -f1)
+[ "$last_starting" -lt "$first_ready" ] || fail "VB_STATUS said STARTING after READY"
 ! grep -v "no memory budget in this build" "$work/good.daemon.log" | grep -q "^<[0-4]>" ||
   fail "warnings with every camera present"
 grep -q "^<6>virtualbutcherd: virtualbutcherd .*($revision)" "$work/good.daemon.log" ||

@@ -32,6 +32,7 @@ TEST_F(VirtualSceneTest, RoundTrips) {
   scene.rig_path = "rig.yaml";
   scene.fps = 15;
   scene.start_delay_ms = 450;
+  scene.start_delays_ms["VB0002"] = 2500;
   scene.floor_z_m = -2.0;
   scene.seed = 9;
   scene.noise.enabled = false;
@@ -41,6 +42,8 @@ TEST_F(VirtualSceneTest, RoundTrips) {
   EXPECT_EQ(back.rig.cameras.size(), 4u);
   EXPECT_EQ(back.fps, 15);
   EXPECT_EQ(back.start_delay_ms, 450);
+  EXPECT_EQ(back.start_delay("VB0002"), 2500);
+  EXPECT_EQ(back.start_delay("VB0001"), 450);
   EXPECT_EQ(*back.floor_z_m, -2.0);
   EXPECT_EQ(back.seed, 9u);
   EXPECT_FALSE(back.noise.enabled);
@@ -58,6 +61,12 @@ TEST_F(VirtualSceneTest, NamesWhatIsWrong) {
   EXPECT_THAT(Error("rig: rig.yaml\nfps: 0\n"), HasSubstr("fps: value 0 is outside [1, 120]"));
   EXPECT_THAT(Error("rig: rig.yaml\nstart_delay_ms: -1\n"),
               HasSubstr("start_delay_ms: value -1 is outside [0, 10000]"));
+  EXPECT_THAT(Error("rig: rig.yaml\nstart_delays_ms: {VB0009: 100}\n"),
+              HasSubstr("start_delays_ms.VB0009: the rig has no camera with serial 'VB0009'"));
+  EXPECT_THAT(Error("rig: rig.yaml\nstart_delays_ms: {VB0001: 20000}\n"),
+              HasSubstr("start_delays_ms.VB0001: value 20000 is outside [0, 10000]"));
+  EXPECT_THAT(Error("rig: rig.yaml\nstart_delays_ms: 100\n"),
+              HasSubstr("start_delays_ms: expected a mapping of serial: ms"));
   EXPECT_THAT(Error("rig: other.yaml\n"), HasSubstr("other.yaml: cannot open rig calibration file"));
 }
 
