@@ -255,6 +255,7 @@ struct RigCapture::Camera {
   std::int64_t next_recovery_ns = 0;
   bool frame_since_start = false;  // a frame arrived since the stream was (re)started
   int recovery_step = 0;  // 0: restart the stream next, then reopen the device
+  int silent_reopens = 0;  // reopens since the last healthy frame that have given none
   // Why a recording (.oni) this camera plays was refused, set once before it is first opened
   // (status.last_error points at it): OpenNI2's player trusts the file's sizes.
   std::string refused;
@@ -444,6 +445,7 @@ void RigCapture::UpdateHealth(Camera* cam, std::int64_t now) {
   const bool broken = s.health == CameraHealth::kFrozen || s.health == CameraHealth::kMissing;
   if (!broken) {
     cam->recovery_step = 0;
+    cam->silent_reopens = 0;
     cam->next_recovery_ns = now + static_cast<std::int64_t>(options_.recovery_period_ms) * 1000000;
     return;
   }
@@ -466,14 +468,16 @@ void RigCapture::UpdateHealth(Camera* cam, std::int64_t now) {
   Open(cam);  // a device that cannot be opened is tried again after the recovery period
   if (cam->streaming) {
     SetHealth(cam, before, now, nullptr);  // healthy only on a good frame
-    // As long for its first frame, from its opening, as a device opened at start: a live
-    // camera can take longer than the recovery period, and would otherwise be reopened before
-    // every first frame. (A stream restart has the recovery period: a slow one goes on to a
-    // reopen, once.)
-    cam->next_recovery_ns =
-        cam->opened_ns +
-        std::int64_t{std::max(options_.recovery_period_ms, options_.first_frame_timeout_ms)} *
-            1000000;
+    // As long for its first frame, from its opening, as a device opened at start, doubled
+    // after every reopen that gave no frame (at most 16 times): a live camera can take longer
+    // than the recovery period, or than first_frame_timeout_ms, and would otherwise be
+    // reopened before every first frame, for ever. (A stream restart has the recovery period:
+    // a slow one goes on to a reopen, once.)
+    const std::int64_t wait_ms =
+        std::int64_t{std::max(options_.recovery_period_ms, options_.first_frame_timeout_ms)}
+        << std::min(cam->silent_reopens, 4);
+    ++cam->silent_reopens;
+    cam->next_recovery_ns = cam->opened_ns + wait_ms * 1000000;
   }
   cam->recovery_step = 1;
 }

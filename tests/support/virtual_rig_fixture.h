@@ -43,6 +43,12 @@ class VirtualRigTest : public ::testing::Test {
     SaveScene();
   }
 
+  /// As SetStartDelay, for the camera with @p serial alone.
+  void SetStartDelay(const std::string& serial, int ms) {
+    scene_.start_delays_ms[serial] = ms;
+    SaveScene();
+  }
+
   /// Writes scene_ as the driver's scene file, naming the rig and carcass beside it.
   void SaveScene() const {
     perception::VirtualScene scene = scene_;
