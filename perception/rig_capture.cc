@@ -241,6 +241,10 @@ const char* ToString(CameraHealth health) {
   return "?";
 }
 
+// The longest a reopened device waits for its first frame when earlier reopens gave none
+// (unless the first wait is longer): a camera that hangs is tried again at least this often.
+constexpr std::int64_t kMaxFirstFrameWaitMs = 30000;
+
 struct RigCapture::Camera {
   CameraCalibration calibration;
   openni::Device device;
@@ -469,14 +473,15 @@ void RigCapture::UpdateHealth(Camera* cam, std::int64_t now) {
   if (cam->streaming) {
     SetHealth(cam, before, now, nullptr);  // healthy only on a good frame
     // As long for its first frame, from its opening, as a device opened at start, doubled
-    // after every reopen that gave no frame (at most 16 times): a live camera can take longer
-    // than the recovery period, or than first_frame_timeout_ms, and would otherwise be
-    // reopened before every first frame, for ever. (A stream restart has the recovery period:
-    // a slow one goes on to a reopen, once.)
+    // after every reopen that gave no frame, up to kMaxFirstFrameWaitMs (or the first wait,
+    // when longer): a live camera can take longer than the recovery period, or than
+    // first_frame_timeout_ms, and would otherwise be reopened before every first frame, for
+    // ever. (A stream restart has the recovery period: a slow one goes on to a reopen, once.)
+    const std::int64_t first_ms =
+        std::max(options_.recovery_period_ms, options_.first_frame_timeout_ms);
     const std::int64_t wait_ms =
-        std::int64_t{std::max(options_.recovery_period_ms, options_.first_frame_timeout_ms)}
-        << std::min(cam->silent_reopens, 4);
-    ++cam->silent_reopens;
+        std::max(first_ms, std::min(first_ms << cam->silent_reopens, kMaxFirstFrameWaitMs));
+    cam->silent_reopens = std::min(cam->silent_reopens + 1, 4);
     cam->next_recovery_ns = cam->opened_ns + wait_ms * 1000000;
   }
   cam->recovery_step = 1;

@@ -36,8 +36,8 @@ struct CaptureOptions {
   /// Recovery of an unhealthy camera, in steps this far apart: restart its stream, then
   /// reopen the device, then keep trying to reopen. A device reopened has the longer of this
   /// and first_frame_timeout_ms for its first frame before it is reopened again, twice that
-  /// after a reopen that gave no frame, and so on up to 16 times (a camera slower to start
-  /// than first_frame_timeout_ms comes up in the end).
+  /// after a reopen that gave no frame, and so on up to 30 s (or that first wait, when
+  /// longer): a camera slower to start than first_frame_timeout_ms comes up in the end.
   int recovery_period_ms = 1000;
   /// Depth-to-colour registration, where the device has a colour sensor and supports it.
   bool register_depth_to_color = true;

@@ -50,46 +50,44 @@ VirtualScene LoadVirtualScene(const std::filesystem::path& path) {
   if (root["fps"]) scene.fps = r.IntInRange(root["fps"], "fps", 1, 120);
   if (root["start_delay_ms"])
     scene.start_delay_ms = r.IntInRange(root["start_delay_ms"], "start_delay_ms", 0, 10000);
-  // Per serial, for a serial the rig has.
-  const auto check_serial = [&](const YAML::Node& key, const std::string& what,
-                                const std::string& serial) {
-    for (const CameraCalibration& cam : scene.rig.cameras)
-      if (cam.serial == serial) return;
-    r.Fail(key, what, "the rig has no camera with serial '" + serial + "'");
-  };
-  if (const YAML::Node delays = root["start_delays_ms"]) {
-    if (!delays.IsMap()) r.Fail(delays, "start_delays_ms", "expected a mapping of serial: ms");
-    for (const auto& entry : delays) {
+  // Each entry of the mapping @p name (serial: value), for a serial the rig has: each(value,
+  // its key for messages, serial).
+  const auto per_serial = [&](const char* name, const char* expected, const auto& each) {
+    const YAML::Node map = root[name];
+    if (!map) return;
+    if (!map.IsMap()) r.Fail(map, name, std::string("expected a mapping of ") + expected);
+    for (const auto& entry : map) {
       const std::string serial = entry.first.as<std::string>();
-      const std::string key = "start_delays_ms." + serial;
-      check_serial(entry.first, key, serial);
-      scene.start_delays_ms[serial] = r.IntInRange(entry.second, key, 0, 10000);
+      const std::string key = std::string(name) + "." + serial;
+      bool known = false;
+      for (const CameraCalibration& cam : scene.rig.cameras) known |= cam.serial == serial;
+      if (!known) r.Fail(entry.first, key, "the rig has no camera with serial '" + serial + "'");
+      each(entry.second, key, serial);
     }
-  }
+  };
+  per_serial("start_delays_ms", "serial: ms",
+             [&](const YAML::Node& value, const std::string& key, const std::string& serial) {
+               scene.start_delays_ms[serial] = r.IntInRange(value, key, 0, 10000);
+             });
   if (root["floor_z_m"]) scene.floor_z_m = r.InRange(root["floor_z_m"], "floor_z_m", -20, 20);
   if (const YAML::Node noise = root["noise"]) {
     if (!noise.IsMap()) r.Fail(noise, "noise", "expected a mapping");
     if (noise["enabled"]) scene.noise.enabled = r.Scalar<bool>(noise["enabled"], "noise.enabled");
     if (noise["seed"]) scene.seed = r.Scalar<std::uint64_t>(noise["seed"], "noise.seed");
   }
-  if (const YAML::Node faults = root["faults"]) {
-    if (!faults.IsMap()) r.Fail(faults, "faults", "expected a mapping of serial: fault");
-    for (const auto& entry : faults) {
-      const std::string serial = entry.first.as<std::string>();
-      const std::string key = "faults." + serial;
-      check_serial(entry.first, key, serial);
-      const auto name = r.Scalar<std::string>(entry.second, key);
-      if (name == "none") {
-        scene.faults[serial] = CameraFault::kNone;
-      } else if (name == "frozen") {
-        scene.faults[serial] = CameraFault::kFrozen;
-      } else if (name == "missing") {
-        scene.faults[serial] = CameraFault::kMissing;
-      } else {
-        r.Fail(entry.second, key, "'" + name + "' is not one of none, frozen, missing");
-      }
-    }
-  }
+  per_serial("faults", "serial: fault",
+             [&](const YAML::Node& value, const std::string& key, const std::string& serial) {
+               const auto name = r.Scalar<std::string>(value, key);
+               if (name == "none") {
+                 scene.faults[serial] = CameraFault::kNone;
+               } else if (name == "frozen") {
+                 scene.faults[serial] = CameraFault::kFrozen;
+               } else if (name == "missing") {
+                 scene.faults[serial] = CameraFault::kMissing;
+               } else {
+                 r.Fail(value, key, "'" + name + "' is not one of none, frozen, missing");
+               }
+             });
   return scene;
 }
 

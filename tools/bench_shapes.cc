@@ -444,7 +444,10 @@ std::string MorphStem(const BenchCase& c, std::size_t t, double sigma_mm,
   return TruthName(c, t) + "_" + MmLabel(sigma_mm) + "_" + variant;
 }
 // What one morph writes under its stem: the cloud it got and what each stage made of it.
-constexpr const char* kMorphParts[] = {"cloud", "coarse", "full"};
+constexpr const char* kCloudPart = "cloud";
+constexpr const char* kCoarsePart = "coarse";
+constexpr const char* kFullPart = "full";
+constexpr const char* kMorphParts[] = {kCloudPart, kCoarsePart, kFullPart};
 std::string MorphFile(const std::string& stem, const char* part) { return stem + "_" + part; }
 
 // @throws InputError when two files of one --export run would have the same name (noise
@@ -750,9 +753,9 @@ int RunShapeBench(const ShapeBenchOptions& options) {
             auto file = [&](const char* part) {
               return options.export_dir / (MorphFile(stem, part) + ".ply");
             };
-            io::WriteCloud(file("cloud"), geometry::PointCloud{points, {}});
-            const auto coarse_file = file("coarse");
-            const auto full_file = file("full");
+            io::WriteCloud(file(kCloudPart), geometry::PointCloud{points, {}});
+            const auto coarse_file = file(kCoarsePart);
+            const auto full_file = file(kFullPart);
             std::filesystem::remove(coarse_file);
             std::filesystem::remove(full_file);
             if (coarse.ok) io::WriteMesh(coarse_file, coarse.mesh);

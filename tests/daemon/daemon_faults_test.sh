@@ -43,7 +43,7 @@ start_daemon() {  # start_daemon <config> <log>
   daemon_pid=$!
   for _ in $(seq 200); do grep -q "LCM on" "$2" && break; sleep 0.1; done
   grep -q "LCM on" "$2" || fail "the daemon did not come up"
-  sleep 1  # the saw leaves safe stop after three heartbeats; the cameras deliver
+  sleep 1  # the cameras deliver; the saw leaves safe stop at the first READY heartbeat
 }
 # wait_for <file> <count> <pattern> <seconds>: the limits only stop a hang (a ThreadSanitizer
 # build morphs in about 13 s); each wait ends as soon as its line is there.
