@@ -141,9 +141,16 @@ std::vector<Similarity> PrincipalFrameCandidates(const Eigen::Matrix3Xd& from,
   return out;
 }
 
-// The posed template (normalised frame) brought to the target's frame as the result's mesh.
-void Finish(const TemplateModel& model, const Similarity& to_target, const Eigen::Matrix3Xd& posed,
+// The posed template (normalised frame) brought to the target's frame by @p placement, then
+// refitted from the target's side (RefitSimilarity), as the result's mesh; the placement the
+// dense stage goes on from (association.from_to) and template_to_target include the refit.
+void Finish(const TemplateModel& model, const Similarity& placement, const Eigen::Matrix3Xd& posed,
+            const Eigen::Matrix3Xd& target, const SimilarityRefitOptions& refit, WorkerPool* pool,
             CoarseResult* result) {
+  Eigen::Matrix3Xd placed(3, posed.cols());
+  for (Eigen::Index i = 0; i < posed.cols(); ++i) placed.col(i) = placement(posed.col(i));
+  const Similarity to_target = Compose(RefitSimilarity(placed, target, refit, pool), placement);
+  result->association.from_to = to_target;
   result->template_to_target = Similarity{to_target.scale * model.size, to_target.R, to_target.t};
   result->mesh.F = model.mesh.F;
   result->mesh.V.resize(3, posed.cols());
@@ -529,7 +536,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
             : std::string("posture fit");
     result.deformation_seconds = Since(phase);
     Finish(model, to_target, DeformPoints(model.graph, model.vertex_weights, model.V, result.state),
-           &result);
+           target, options.refit, pool, &result);
     result.total_seconds = Since(start);
     return result;
   }
@@ -569,7 +576,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     }
   }
 
-  Finish(model, to_target, posed, &result);
+  Finish(model, to_target, posed, target, options.refit, pool, &result);
   result.total_seconds = Since(start);
   return result;
 }

@@ -9,6 +9,7 @@
 #include "morph/embedded_deformation.h"
 #include "morph/feature_association.h"
 #include "morph/point_index.h"
+#include "morph/similarity_refit.h"
 #include "morph/skeleton_graph.h"
 #include "morph/template_model.h"
 #include "morph/worker_pool.h"
@@ -67,6 +68,8 @@ struct CoarseOptions {
   /// fitted for all of `articulation.rounds`.
   int choice_rounds = 3;
   ArticulationOptions articulation;
+  /// The posed template's last move, as a whole, fitted from the target's side.
+  SimilarityRefitOptions refit;
 };
 
 /// The outcome of the coarse stage. Expected trouble (a skeleton with too few feature nodes,
@@ -75,7 +78,9 @@ struct CoarseResult {
   bool ok = false;
   std::string error;
   geometry::TriangleMesh mesh;    ///< posed template in the target's frame (template faces)
-  Similarity template_to_target;  ///< from the feature association
+  /// The placement (from the feature association and the surfaces), refitted at the end
+  /// (CoarseOptions::refit); template units to the target's.
+  Similarity template_to_target;
   Association association;
   /// Whether the chosen placement came from a skeleton pairing (else from the principal
   /// axes; its feature pairs are then the mutual nearest ones).
