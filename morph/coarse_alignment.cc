@@ -143,18 +143,32 @@ std::vector<Similarity> PrincipalFrameCandidates(const Eigen::Matrix3Xd& from,
 
 // The posed template (normalised frame) brought to the target's frame by @p placement, then
 // refitted from the target's side (RefitSimilarity), as the result's mesh; the placement the
-// dense stage goes on from (association.from_to) and template_to_target include the refit.
+// dense stage goes on from (association.from_to) and template_to_target include the refit. A
+// refit that would tilt the template's up direction past the upright prior's limit is dropped.
 void Finish(const TemplateModel& model, const Similarity& placement, const Eigen::Matrix3Xd& posed,
-            const Eigen::Matrix3Xd& target, const SimilarityRefitOptions& refit, WorkerPool* pool,
+            const Eigen::Matrix3Xd& target, const CoarseOptions& options, WorkerPool* pool,
             CoarseResult* result) {
-  Eigen::Matrix3Xd placed(3, posed.cols());
-  for (Eigen::Index i = 0; i < posed.cols(); ++i) placed.col(i) = placement(posed.col(i));
-  const Similarity to_target = Compose(RefitSimilarity(placed, target, refit, pool), placement);
+  Eigen::Matrix3Xd& V = result->mesh.V;
+  V.resize(3, posed.cols());
+  Similarity refit;
+  if (options.refit.rounds > 0) {
+    for (Eigen::Index i = 0; i < posed.cols(); ++i) V.col(i) = placement(posed.col(i));
+    refit = RefitSimilarity(V, target, options.refit, pool);
+  }
+  const UprightPrior& upright = options.upright;
+  if (upright.enabled) {
+    const Eigen::Vector3d up = refit.R * placement.R * upright.template_up.normalized();
+    if (up.dot(upright.target_up.normalized()) <
+        std::cos(upright.max_tilt_deg * std::numbers::pi / 180.0))
+      refit = Similarity{};
+  }
+  result->placement = placement;
+  result->refit = refit;
+  const Similarity to_target = Compose(refit, placement);
   result->association.from_to = to_target;
   result->template_to_target = Similarity{to_target.scale * model.size, to_target.R, to_target.t};
+  for (Eigen::Index i = 0; i < V.cols(); ++i) V.col(i) = to_target(posed.col(i));
   result->mesh.F = model.mesh.F;
-  result->mesh.V.resize(3, posed.cols());
-  for (Eigen::Index i = 0; i < posed.cols(); ++i) result->mesh.V.col(i) = to_target(posed.col(i));
   result->mesh.N = geometry::VertexNormals(result->mesh);
   result->ok = true;
 }
@@ -536,7 +550,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
             : std::string("posture fit");
     result.deformation_seconds = Since(phase);
     Finish(model, to_target, DeformPoints(model.graph, model.vertex_weights, model.V, result.state),
-           target, options.refit, pool, &result);
+           target, options, pool, &result);
     result.total_seconds = Since(start);
     return result;
   }
@@ -576,7 +590,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     }
   }
 
-  Finish(model, to_target, posed, target, options.refit, pool, &result);
+  Finish(model, to_target, posed, target, options, pool, &result);
   result.total_seconds = Since(start);
   return result;
 }

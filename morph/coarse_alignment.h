@@ -68,7 +68,8 @@ struct CoarseOptions {
   /// fitted for all of `articulation.rounds`.
   int choice_rounds = 3;
   ArticulationOptions articulation;
-  /// The posed template's last move, as a whole, fitted from the target's side.
+  /// The posed template's last move, as a whole, fitted from the target's side; not applied
+  /// when it would tilt the template past the upright prior's limit.
   SimilarityRefitOptions refit;
 };
 
@@ -81,7 +82,13 @@ struct CoarseResult {
   /// The placement (from the feature association and the surfaces), refitted at the end
   /// (CoarseOptions::refit); template units to the target's.
   Similarity template_to_target;
+  /// association.from_to (the template's normalised frame to the target's) is refit
+  /// composed with placement.
   Association association;
+  /// The placement chosen, before the refit (normalised frame to the target's).
+  Similarity placement;
+  /// The refit, the target's frame to itself (the identity when off or not applied).
+  Similarity refit;
   /// Whether the chosen placement came from a skeleton pairing (else from the principal
   /// axes; its feature pairs are then the mutual nearest ones).
   bool placed_by_skeletons = true;
@@ -101,7 +108,7 @@ struct CoarseResult {
   DeformationState state;
   /// Surface disagreement (mean closest-point distance both ways, template sizes) of the
   /// chosen placement after the whole posture fit (the rigid placement's when no candidate
-  /// was given the posture fit).
+  /// was given the posture fit), before the refit.
   double disagreement = 0.0;
   /// The chosen placement's disagreement when it was chosen: after the choice's rounds of
   /// posture fit, or rigid when no candidate was fitted. 0 when nothing was chosen.

@@ -27,6 +27,11 @@ struct Similarity {
   }
 };
 
+/// The similarity x -> a(b(x)).
+inline Similarity Compose(const Similarity& a, const Similarity& b) {
+  return {a.scale * b.scale, a.R * b.R, a.scale * (a.R * b.t) + a.t};
+}
+
 /// The rotation R maximising trace(R^T M) for a 3x3 correlation M = sum_i w_i b_i a_i^T (so R
 /// takes the a_i nearest to the b_i: Kabsch's and Wahba's problem), from M's SVD given as
 /// @p svd (with full U and V): U diag(1, 1, +-1) V^T, the sign making it a rotation.
@@ -37,7 +42,9 @@ struct Association {
   bool ok = false;
   std::vector<std::pair<int, int>> terminals;  ///< (index in `from`, index in `to`)
   std::vector<std::pair<int, int>> junctions;
-  Similarity from_to;         ///< best fit of the paired nodes, `from` -> `to`
+  /// Best fit of the paired nodes, `from` -> `to` (in AlignCoarse's result: the placement
+  /// chosen, refined and refitted, CoarseResult::placement and ::refit composed).
+  Similarity from_to;
   double rms_residual = 0.0;  ///< of that fit per residual degree of freedom, with the penalty for
                               ///< unpaired features; `to` units
   long candidates = 0;        ///< pairings whose fit was evaluated

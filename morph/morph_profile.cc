@@ -79,8 +79,8 @@ const std::array kKeys = {
     VB_PROFILE_KEY(coarse.articulation.deformation.w_rig, kWeight, 0.0, 1e6, false, "posture fit: E_rig weight"),
     VB_PROFILE_KEY(coarse.articulation.deformation.max_iterations, kCount, 1, 1000, false, "posture fit: solver iterations a round"),
     VB_PROFILE_KEY(coarse.refit.rounds, kRounds, 0, 50, false, "last move: rounds of a similarity fitted from the target's side (0: off)"),
-    VB_PROFILE_KEY(coarse.refit.samples, kCount, 4, 100000, false, "last move: target points paired a round"),
-    VB_PROFILE_KEY(coarse.refit.keep_fraction, kFraction, 0.1, 1.0, false, "last move: pairs kept (nearest)"),
+    VB_PROFILE_KEY(coarse.refit.samples, kCount, 100, 100000, false, "last move: target points paired a round"),
+    VB_PROFILE_KEY(coarse.refit.keep_fraction, kFraction, 0.5, 1.0, false, "last move: pairs kept (nearest)"),
     // Dense stage.
     VB_PROFILE_KEY(dense.num_samples, kCount, 100, 100000, true, "template vertices associated a round"),
     VB_PROFILE_KEY(dense.reverse_samples, kCount, 0, 100000, true, "target points associated back a round"),

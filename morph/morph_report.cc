@@ -1,8 +1,10 @@
 #include "morph/morph_report.h"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <numbers>
 
 namespace vb::morph {
 namespace {
@@ -28,6 +30,11 @@ void Write(const std::filesystem::path& path, const nlohmann::json& j) {
 }
 
 nlohmann::json Point(const Eigen::Vector3d& p) { return {p.x(), p.y(), p.z()}; }
+
+// The angle of the rotation @p R, in degrees.
+double RotationDegrees(const Eigen::Matrix3d& R) {
+  return std::acos(std::clamp((R.trace() - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / std::numbers::pi;
+}
 
 }  // namespace
 
@@ -77,7 +84,9 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
                       {"scale", r.template_to_target.scale / model.size},
                       {"placement", r.placed_by_skeletons ? "skeleton pairing" : "principal axes"},
                       {"surface_disagreement", r.disagreement},
-                      {"choice_disagreement", r.choice_disagreement}};
+                      {"choice_disagreement", r.choice_disagreement},
+                      {"refit_scale", r.refit.scale},
+                      {"refit_turn_deg", RotationDegrees(r.refit.R)}};
   if (std::isfinite(r.runner_up_disagreement))
     j["association"]["runner_up_disagreement"] = r.runner_up_disagreement;
   nlohmann::json& deformation = j["deformation"];

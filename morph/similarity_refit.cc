@@ -6,21 +6,20 @@
 #include <numeric>
 #include <vector>
 
+#include "io/error.h"
 #include "morph/point_index.h"
 
 namespace vb::morph {
 
-Similarity Compose(const Similarity& a, const Similarity& b) {
-  return {a.scale * b.scale, a.R * b.R, a.scale * (a.R * b.t) + a.t};
-}
-
 Similarity RefitSimilarity(const Eigen::Matrix3Xd& posed, const Eigen::Matrix3Xd& target,
                            const SimilarityRefitOptions& options, WorkerPool* pool) {
+  VB_DEMAND(options.keep_fraction > 0.0 && options.keep_fraction <= 1.0);
   Similarity fit;
   if (options.rounds <= 0 || options.samples < 1 || posed.cols() < 4) return fit;
   // Every n-th finite target point, at most `samples` of them.
   const Eigen::Index step = (target.cols() + options.samples - 1) / options.samples;
   std::vector<Eigen::Index> picked;
+  picked.reserve(static_cast<std::size_t>(std::min<Eigen::Index>(target.cols(), options.samples)));
   for (Eigen::Index i = 0; i < target.cols(); i += std::max<Eigen::Index>(1, step))
     if (target.col(i).allFinite()) picked.push_back(i);
   const auto count = static_cast<Eigen::Index>(picked.size());
@@ -29,8 +28,8 @@ Similarity RefitSimilarity(const Eigen::Matrix3Xd& posed, const Eigen::Matrix3Xd
                           4, static_cast<Eigen::Index>(std::ceil(options.keep_fraction * count))));
   if (count < 4) return fit;
   const Eigen::Matrix3Xd samples = target(Eigen::all, picked);
-  // Nearness is the same in the template's frame and in S's, up to S's scale: the samples are
-  // brought back by S's inverse and paired in one kd-tree over the posed points.
+  // Nearness to S(posed) is nearness to posed, up to S's scale: the samples are brought back
+  // by S's inverse and paired in one kd-tree over the posed points, built once.
   const PointIndex index(posed);
   Eigen::Matrix3Xd back(3, count), from(3, kept), to(3, kept);
   std::vector<double> distance(static_cast<std::size_t>(count));

@@ -22,25 +22,19 @@ struct SimilarityRefitOptions {
 /// The similarity S (the target's frame to itself) bringing @p posed onto @p target as seen
 /// from the target: each round pairs up to `samples` target points (every n-th) with their
 /// nearest point of S(posed), keeps the nearest keep_fraction of the pairs and fits S to them
-/// (Umeyama's closed form, with scale), from the start each round.
-///
-/// Fitted from the template's side, a partial target (a camera shadow, a part out of view)
-/// draws the template in and scales it down; every target point, though, has its counterpart
-/// on a template that covers the body, so the fit from the target's side is not biased by what
-/// the target lacks. The posture fit cannot take such a scale out afterwards: E_rot
-/// (eq. 6) charges a uniform stretch as it charges any other.
-/// @param[in] posed, target 3 by N points in the same frame; non-finite target points are
-///   skipped.
+/// (Umeyama's closed form, with scale), from the start each round. Why from the target's
+/// side: docs/method.md section 2.7.
+/// @param[in] posed, target 3 by N points in the same frame (any unit); non-finite target
+///   points are skipped. Clutter beyond 1 - keep_fraction of the target biases the fit.
+/// @pre 0 < options.keep_fraction <= 1.
 /// @param pool when given, the pairing is shared among its threads; the result is the same on
 ///   any number of threads.
-/// @return the identity when rounds is 0, when either set has fewer than 4 points, or when
+/// @return the identity when rounds or samples is below 1, when posed has fewer than 4 points
+///   or fewer than 4 target points are finite among those sampled, or when
 ///   the first fit is degenerate (not finite, or scaling by less than 1/2 or more than 2: a
 ///   collapse onto a target all in one spot or on one line); a later degenerate fit ends the
 ///   rounds with the last good one.
 Similarity RefitSimilarity(const Eigen::Matrix3Xd& posed, const Eigen::Matrix3Xd& target,
                            const SimilarityRefitOptions& options, WorkerPool* pool = nullptr);
-
-/// The similarity x -> a(b(x)).
-Similarity Compose(const Similarity& a, const Similarity& b);
 
 }  // namespace vb::morph

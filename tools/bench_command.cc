@@ -74,8 +74,7 @@ Row Evaluate(const morph::TemplateModel& model, const Eigen::Matrix3Xd& input,
   const double diagonal = TrueSize(model.mesh.V, truth);
   if (r.association.ok) {
     Eigen::Matrix3Xd rigid(3, model.V.cols());
-    for (Eigen::Index i = 0; i < model.V.cols(); ++i)
-      rigid.col(i) = r.association.from_to(model.V.col(i));
+    for (Eigen::Index i = 0; i < model.V.cols(); ++i) rigid.col(i) = r.placement(model.V.col(i));
     const Eigen::VectorXd e = (rigid - truth).colwise().norm();
     row.rigid_mean = e.mean() / diagonal;
     row.rigid_max = e.maxCoeff() / diagonal;

@@ -2,9 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 
 #include "geometry/mesh_measures.h"
+#include "morph/embedded_deformation.h"
 #include "morph/morph_carcass.h"
 #include "perception/carcass_generator.h"
 #include "tests/support/lamb_fixture.h"
@@ -50,6 +52,43 @@ TEST_F(CoarseAlignmentTest, PlacesPartialCloudsTheSkeletonsAloneTurnOver) {
     const double mean_error = (r.mesh.V - truth.mesh.V).colwise().norm().mean() / diagonal;
     EXPECT_LT(mean_error, 0.04) << "target " << index;
   }
+}
+
+// The refit is the coarse stage's last move: it leaves the placement chosen as it was (so it
+// cannot flip one), and the mesh is the posed template moved by the refit after the placement.
+TEST_F(CoarseAlignmentTest, TheRefitComesAfterThePlacementAndMovesTheWholeMesh) {
+  const std::uint64_t seed = 1000025u;
+  const perception::PosedCarcass truth =
+      perception::PoseCarcass(*carcass_, perception::SampleCarcassPose(seed));
+  perception::CloudOptions cloud;
+  cloud.sigma_m = 0.004;
+  cloud.missing_regions = true;
+  const Eigen::Matrix3Xd target = perception::SampleSurfaceCloud(truth, cloud, seed + 29).points;
+  CoarseOptions off;
+  off.refit.rounds = 0;
+  const CoarseResult r = AlignCoarse(*model_, target);
+  const CoarseResult unrefitted = AlignCoarse(*model_, target, off);
+  ASSERT_TRUE(r.ok && unrefitted.ok) << r.error << unrefitted.error;
+  EXPECT_EQ(r.placement.scale, unrefitted.placement.scale);
+  EXPECT_EQ(r.placement.R, unrefitted.placement.R);
+  EXPECT_EQ(r.placement.t, unrefitted.placement.t);
+  EXPECT_EQ(unrefitted.refit.scale, 1.0);
+  EXPECT_EQ(unrefitted.refit.R, Eigen::Matrix3d::Identity());
+  EXPECT_EQ(unrefitted.association.from_to.scale, unrefitted.placement.scale);
+  EXPECT_EQ(unrefitted.association.from_to.t, unrefitted.placement.t);
+  const Similarity& to_target = r.association.from_to;
+  const Eigen::Matrix3Xd posed =
+      DeformPoints(model_->graph, model_->vertex_weights, model_->V, r.state);
+  const double diagonal = geometry::BoundingBoxDiagonal(truth.mesh.V);
+  double off_by = 0.0;
+  for (Eigen::Index i = 0; i < posed.cols(); ++i) {
+    off_by = std::max(off_by, (r.mesh.V.col(i) - to_target(posed.col(i))).norm());
+    off_by =
+        std::max(off_by, (to_target(posed.col(i)) - r.refit(r.placement(posed.col(i)))).norm());
+  }
+  EXPECT_LT(off_by, 1e-12 * diagonal);
+  EXPECT_DOUBLE_EQ(r.template_to_target.scale, to_target.scale * model_->size);
+  EXPECT_NE(r.refit.scale, 1.0);
 }
 
 // A cloud without normals at 12 mm: after the choice, the posture fit pairs with normals
