@@ -144,10 +144,11 @@ std::vector<Similarity> PrincipalFrameCandidates(const Eigen::Matrix3Xd& from,
 // The posed template (normalised frame) brought to the target's frame by @p placement, then
 // refitted from the target's side (RefitSimilarity), as the result's mesh; the placement the
 // dense stage goes on from (association.from_to) and template_to_target include the refit. A
-// refit that would tilt the template's up direction past the upright prior's limit is dropped.
+// refit turning the template to an orientation @p association does not accept (the upright
+// prior) is dropped.
 void Finish(const TemplateModel& model, const Similarity& placement, const Eigen::Matrix3Xd& posed,
-            const Eigen::Matrix3Xd& target, const CoarseOptions& options, WorkerPool* pool,
-            CoarseResult* result) {
+            const Eigen::Matrix3Xd& target, const CoarseOptions& options,
+            const AssociationOptions& association, WorkerPool* pool, CoarseResult* result) {
   Eigen::Matrix3Xd& V = result->mesh.V;
   V.resize(3, posed.cols());
   Similarity refit;
@@ -155,13 +156,7 @@ void Finish(const TemplateModel& model, const Similarity& placement, const Eigen
     for (Eigen::Index i = 0; i < posed.cols(); ++i) V.col(i) = placement(posed.col(i));
     refit = RefitSimilarity(V, target, options.refit, pool);
   }
-  const UprightPrior& upright = options.upright;
-  if (upright.enabled) {
-    const Eigen::Vector3d up = refit.R * placement.R * upright.template_up.normalized();
-    if (up.dot(upright.target_up.normalized()) <
-        std::cos(upright.max_tilt_deg * std::numbers::pi / 180.0))
-      refit = Similarity{};
-  }
+  if (!association.AcceptsOrientation(refit.R * placement.R)) refit = Similarity{};
   result->placement = placement;
   result->refit = refit;
   const Similarity to_target = Compose(refit, placement);
@@ -550,7 +545,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
             : std::string("posture fit");
     result.deformation_seconds = Since(phase);
     Finish(model, to_target, DeformPoints(model.graph, model.vertex_weights, model.V, result.state),
-           target, options, pool, &result);
+           target, options, association, pool, &result);
     result.total_seconds = Since(start);
     return result;
   }
@@ -590,7 +585,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     }
   }
 
-  Finish(model, to_target, posed, target, options, pool, &result);
+  Finish(model, to_target, posed, target, options, association, pool, &result);
   result.total_seconds = Since(start);
   return result;
 }

@@ -1,6 +1,6 @@
 #include "morph/morph_report.h"
 
-#include <algorithm>
+#include <Eigen/Geometry>
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -30,11 +30,6 @@ void Write(const std::filesystem::path& path, const nlohmann::json& j) {
 }
 
 nlohmann::json Point(const Eigen::Vector3d& p) { return {p.x(), p.y(), p.z()}; }
-
-// The angle of the rotation @p R, in degrees.
-double RotationDegrees(const Eigen::Matrix3d& R) {
-  return std::acos(std::clamp((R.trace() - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / std::numbers::pi;
-}
 
 }  // namespace
 
@@ -77,16 +72,17 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
     pairs.push_back({{"kind", "terminal"}, {"template", a}, {"target", b}});
   for (const auto& [a, b] : r.association.junctions)
     pairs.push_back({{"kind", "junction"}, {"template", a}, {"target", b}});
-  j["association"] = {{"pairs", pairs},
-                      {"rms_residual", r.association.rms_residual},
-                      {"candidates_evaluated", r.association.candidates},
-                      {"candidates_pruned", r.association.pruned},
-                      {"scale", r.template_to_target.scale / model.size},
-                      {"placement", r.placed_by_skeletons ? "skeleton pairing" : "principal axes"},
-                      {"surface_disagreement", r.disagreement},
-                      {"choice_disagreement", r.choice_disagreement},
-                      {"refit_scale", r.refit.scale},
-                      {"refit_turn_deg", RotationDegrees(r.refit.R)}};
+  j["association"] = {
+      {"pairs", pairs},
+      {"rms_residual", r.association.rms_residual},
+      {"candidates_evaluated", r.association.candidates},
+      {"candidates_pruned", r.association.pruned},
+      {"scale", r.template_to_target.scale / model.size},
+      {"placement", r.placed_by_skeletons ? "skeleton pairing" : "principal axes"},
+      {"surface_disagreement", r.disagreement},
+      {"choice_disagreement", r.choice_disagreement},
+      {"refit_scale", r.refit.scale},
+      {"refit_turn_deg", Eigen::AngleAxisd(r.refit.R).angle() * 180.0 / std::numbers::pi}};
   if (std::isfinite(r.runner_up_disagreement))
     j["association"]["runner_up_disagreement"] = r.runner_up_disagreement;
   nlohmann::json& deformation = j["deformation"];
