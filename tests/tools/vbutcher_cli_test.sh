@@ -54,6 +54,12 @@ fi
 grep -q '"ok": true' "$work/r.json" || { echo "FAIL: report does not say ok"; failures=$((failures + 1)); }
 grep -q '"placement"' "$work/r.json" || { echo "FAIL: report does not say where the placement came from"; failures=$((failures + 1)); }
 grep -q '"kept"' "$work/r.json" || { echo "FAIL: report does not say whether the deformation was kept"; failures=$((failures + 1)); }
+# The coarse stage's refit, as a reader of the report gets it: a scale within the refit's
+# bounds (1/2 to 2) and a turn in degrees.
+/usr/bin/python3 -c 'import json, sys
+a = json.load(open(sys.argv[1]))["association"]
+sys.exit(0 if 0.5 <= a["refit_scale"] <= 2.0 and 0.0 <= a["refit_turn_deg"] <= 180.0 else 1)' "$work/r.json" \
+  || { echo "FAIL: report lacks the refit's scale and turn, or they are out of range"; failures=$((failures + 1)); }
 # The upright prior: targets hanging from the gambrel, as on the line.
 check "synth writes hanging targets" 0 "template:" "$vbutcher" synth --out "$work/up" --count 1 --seed 4 --upright
 check "morph with the upright prior" 0 "coarse total" \
