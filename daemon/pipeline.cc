@@ -764,8 +764,7 @@ bool Pipeline::Tick() {
     rig_check_thread_ = std::thread([this] { RigCheck(); });
   }
   // Until it serves, the saw hears DEGRADED (it refuses jobs), never READY.
-  const bool starting = !serving_ && state != io::saw::DaemonState::kFault;
-  saw_->SendHeartbeat(starting ? io::saw::DaemonState::kDegraded : state, uptime_ms_);
+  saw_->SendHeartbeat(Starting(state) ? io::saw::DaemonState::kDegraded : state, uptime_ms_);
   uptime_ms_ += io::saw::kHeartbeatPeriodMs;
   saw_->Poll();
   if (Clock::now() >= next_status_) {
@@ -801,7 +800,7 @@ void Pipeline::PublishStatus() {
   }
   s.num_cameras = static_cast<std::int8_t>(s.cameras.size());
   const io::saw::DaemonState state = state_.load();
-  const bool starting = !serving_ && state != io::saw::DaemonState::kFault;
+  const bool starting = Starting(state);
   s.state = starting ? vbutcher::status_t::STARTING : LcmState(state);
   s.state_text = StatusLineLocked(starting);
   s.version = version_;

@@ -111,6 +111,10 @@ class Pipeline {
   JobOutcome Deliver(const morph::CarcassResult& result, const std::string& refusal,
                      const JobNumbers::Ids& ids, std::int64_t frames_ns);
   void PublishStatus();
+  // Not serving yet and not in FAULT: VB_STATUS says STARTING, the saw hears DEGRADED.
+  bool Starting(io::saw::DaemonState state) const {
+    return !serving_ && state != io::saw::DaemonState::kFault;
+  }
   void Dump(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
             const morph::CarcassResult& result, const JobReport& report) const;
   // @p starting: "starting, waiting for the cameras" in place of a state other than FAULT.

@@ -57,7 +57,7 @@ VirtualScene LoadVirtualScene(const std::filesystem::path& path) {
     if (!map) return;
     if (!map.IsMap()) r.Fail(map, name, std::string("expected a mapping of ") + expected);
     for (const auto& entry : map) {
-      const std::string serial = entry.first.as<std::string>();
+      const auto serial = r.Scalar<std::string>(entry.first, std::string(name) + " key");
       const std::string key = std::string(name) + "." + serial;
       bool known = false;
       for (const CameraCalibration& cam : scene.rig.cameras) known |= cam.serial == serial;

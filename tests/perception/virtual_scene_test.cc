@@ -67,6 +67,10 @@ TEST_F(VirtualSceneTest, NamesWhatIsWrong) {
               HasSubstr("start_delays_ms.VB0001: value 20000 is outside [0, 10000]"));
   EXPECT_THAT(Error("rig: rig.yaml\nstart_delays_ms: 100\n"),
               HasSubstr("start_delays_ms: expected a mapping of serial: ms"));
+  EXPECT_THAT(Error("rig: rig.yaml\nstart_delays_ms: {[VB0001, VB0002]: 100}\n"),
+              HasSubstr("start_delays_ms key: expected a single value"));
+  EXPECT_THAT(Error("rig: rig.yaml\nfaults: {{VB0001: 1}: frozen}\n"),
+              HasSubstr("faults key: expected a single value"));
   EXPECT_THAT(Error("rig: other.yaml\n"), HasSubstr("other.yaml: cannot open rig calibration file"));
 }
 
