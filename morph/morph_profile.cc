@@ -1,6 +1,7 @@
 #include "morph/morph_profile.h"
 
 #include <array>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 
@@ -176,6 +177,27 @@ std::string CheckProfileValue(const ProfileKey& key, double value) {
     std::snprintf(text, sizeof text, "%g is not a whole number (%s)", value, key.unit);
     return text;
   }
+  return {};
+}
+
+std::string SetProfileKey(std::string_view setting, MorphOptions* options) {
+  const std::size_t eq = setting.find('=');
+  std::string why;
+  if (eq == std::string_view::npos) {
+    why.append("'").append(setting).append("': expected name=value");
+    return why;
+  }
+  const std::string_view name = setting.substr(0, eq), text = setting.substr(eq + 1);
+  why.append(name).append(": ");
+  const ProfileKey* key = FindProfileKey(name);
+  if (key == nullptr) return why.append("unknown key (`vbutcher template info` lists them)");
+  double value = 0;
+  const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (text.empty() || error != std::errc() || end != text.data() + text.size())
+    return why.append("'").append(text).append("' is not a number");
+  if (const std::string problem = CheckProfileValue(*key, value); !problem.empty())
+    return why.append(problem);
+  key->set(options, value);
   return {};
 }
 

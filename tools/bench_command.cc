@@ -12,6 +12,7 @@
 #include "io/error.h"
 #include "io/mesh_io.h"
 #include "morph/coarse_alignment.h"
+#include "morph/morph_profile.h"
 #include "morph/template_model.h"
 #include "perception/carcass_generator.h"
 #include "tools/bench_stats.h"
@@ -167,6 +168,22 @@ geometry::TriangleMesh BendShape(const geometry::TriangleMesh& mesh, std::uint64
   return out;
 }
 
+morph::MorphOptions MorphProfileFrom(const std::vector<std::string>& settings,
+                                     const std::string& where, morph::MorphOptions options) {
+  for (const std::string& setting : settings) {
+    if (const std::string problem = morph::SetProfileKey(setting, &options); !problem.empty())
+      throw InputError(where + ": " + problem);
+  }
+  if (const std::string problem = morph::CheckProfile(options); !problem.empty())
+    throw InputError(where + ": " + problem);
+  if (!settings.empty()) {
+    std::printf("profile: the defaults with");
+    for (const std::string& setting : settings) std::printf(" %s", setting.c_str());
+    std::printf("\n");
+  }
+  return options;
+}
+
 int RunBenchCommand(const BenchOptions& given) {
   if (given.stage != "coarse" && given.stage != "full")
     throw InputError("bench: stage '" + given.stage + "' is neither 'coarse' nor 'full'");
@@ -194,7 +211,8 @@ int RunBenchCommand(const BenchOptions& given) {
   model_options.feature_source =
       morph::FeatureSourceNamed(options.template_features, "bench: --template-features");
   const morph::TemplateModel lamb = morph::BuildTemplateModel(carcass.mesh, model_options);
-  const morph::CoarseOptions coarse;
+  const morph::CoarseOptions coarse =
+      MorphProfileFrom(options.profile_settings, "bench: --set").coarse;
   std::printf(
       "lamb template: %d vertices, model built in %.2f s (%d terminals, %d junctions, %d graph "
       "nodes)\n",

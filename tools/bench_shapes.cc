@@ -34,6 +34,7 @@
 #include "morph/template_model.h"
 #include "perception/carcass_generator.h"
 #include "perception/depth_renderer.h"
+#include "tools/bench_command.h"
 #include "tools/bench_stats.h"
 #include "tools/shape_set/shape_set.h"
 
@@ -546,6 +547,8 @@ int RunShapeBench(const ShapeBenchOptions& options) {
   if (!(options.points >= 100 && options.points <= 2000000)) {
     throw InputError("bench shapes: --points must lie in 100 to 2000000");
   }
+  const morph::MorphOptions morph_options =
+      MorphProfileFrom(options.profile_settings, "bench shapes: --set");
   const std::vector<ShapeSpec> specs = ShapeSpecs(options);
   bool any_failed = false;
   const std::vector<BenchCase> cases = BuildCases(options, specs, &any_failed);
@@ -706,8 +709,8 @@ int RunShapeBench(const ShapeBenchOptions& options) {
           full_row.method = "full";
           // The pipeline's own morph (clutter out, the stages on the rest, the whole-morph
           // check), without cuts; the cleaning's time counts in the coarse stage's.
-          const morph::CarcassResult morphed =
-              morph::MorphCarcass(model, io::Annotations{}, points, Eigen::Matrix3Xd(), {}, &pool);
+          const morph::CarcassResult morphed = morph::MorphCarcass(
+              model, io::Annotations{}, points, Eigen::Matrix3Xd(), morph_options, &pool);
           const morph::CoarseResult& coarse = morphed.coarse;
           const morph::DenseResult& dense = morphed.dense;
           coarse_row.seconds = morphed.cleaning.seconds + coarse.total_seconds;

@@ -56,6 +56,8 @@ struct ShapeBenchOptions {
   /// Every template's skeleton: "levelset", the one the targets get, or "mcf", the paper's
   /// mean curvature flow skeleton (morph::TemplateModelOptions::FeatureSource).
   std::string template_features = "levelset";
+  /// Profile keys set for this run, "name=value" (tools::MorphProfileFrom).
+  std::vector<std::string> profile_settings;
 };
 
 /// `vbutcher bench shapes`: the morph on third-party rigged and animated bodies posed by their

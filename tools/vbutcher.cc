@@ -208,6 +208,11 @@ int main(int argc, char** argv) {
                       "surface (what the dense stage's own energy does to a right answer)");
   add_threads(bench_cmd, bench.threads, "Full stage: threads a morph runs on");
   bench_cmd->add_option("--csv", bench.csv, "One row per morph (default bench_<stage>.csv)");
+  bench_cmd
+      ->add_option("--set", bench.profile_settings,
+                   "Profile key=value for this run (any key `vbutcher template info` lists; "
+                   "repeatable), after the options above")
+      ->allow_extra_args(false);
 
   vb::tools::VirtualRigCommandOptions virtual_rig;
   CLI::App* virtual_rig_cmd = app.add_subcommand(
@@ -362,6 +367,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   shape_bench_cmd->add_option("--export", shape_bench.export_dir,
                               "Write templates, truths and every morph there as PLY");
+  shape_bench_cmd
+      ->add_option("--set", shape_bench.profile_settings,
+                   "Profile key=value for this run (any key `vbutcher template info` "
+                   "lists; repeatable)")
+      ->allow_extra_args(false);
 
   vb::tools::CamerasCommandOptions cameras;
   CLI::App* cameras_cmd = app.add_subcommand(

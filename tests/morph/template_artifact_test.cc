@@ -216,6 +216,28 @@ TEST(MorphProfileTest, EveryDefaultLiesInItsBoundsAndEveryKeyIsOneMember) {
   EXPECT_EQ(FindProfileKey("dense.nosuch"), nullptr);
 }
 
+TEST(MorphProfileTest, SetsAKeyFromNameEqualsValueOrSaysWhyNot) {
+  MorphOptions options;
+  EXPECT_EQ(SetProfileKey("coarse.refit.rounds=0", &options), "");
+  EXPECT_EQ(options.coarse.refit.rounds, 0);
+  EXPECT_EQ(SetProfileKey("coarse.refit.keep_fraction=0.75", &options), "");
+  EXPECT_EQ(options.coarse.refit.keep_fraction, 0.75);
+  const MorphOptions before = options;
+  EXPECT_EQ(SetProfileKey("coarse.refit.rounds", &options),
+            "'coarse.refit.rounds': expected name=value");
+  EXPECT_THAT(SetProfileKey("dense.nosuch=1", &options), HasSubstr("dense.nosuch: unknown key"));
+  EXPECT_EQ(SetProfileKey("coarse.refit.rounds=", &options),
+            "coarse.refit.rounds: '' is not a number");
+  EXPECT_EQ(SetProfileKey("coarse.refit.rounds=3x", &options),
+            "coarse.refit.rounds: '3x' is not a number");
+  EXPECT_THAT(SetProfileKey("coarse.refit.rounds=2.5", &options),
+              HasSubstr("coarse.refit.rounds: 2.5 is not a whole number"));
+  EXPECT_THAT(SetProfileKey("coarse.refit.keep_fraction=0.1", &options),
+              HasSubstr("coarse.refit.keep_fraction: 0.1 is outside [0.5, 1]"));
+  for (const ProfileKey& key : ProfileKeys())
+    EXPECT_EQ(key.get(options), key.get(before)) << key.name << " changed by a refused setting";
+}
+
 TEST(MorphProfileTest, TheDocsCountTheKeysThereAre) {
   // Every number written just before " keys" in the method and the operations guide.
   for (const char* doc : {"docs/method.md", "docs/operations.md"}) {
