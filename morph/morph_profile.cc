@@ -187,14 +187,22 @@ std::string SetProfileKey(std::string_view setting, MorphOptions* options) {
     why.append("'").append(setting).append("': expected name=value");
     return why;
   }
-  const std::string_view name = setting.substr(0, eq), text = setting.substr(eq + 1);
+  const std::string_view name = setting.substr(0, eq);
+  std::string_view text = setting.substr(eq + 1);
+  if (name.empty()) {
+    why.append("'").append(setting).append("': no key name before '='");
+    return why;
+  }
   why.append(name).append(": ");
   const ProfileKey* key = FindProfileKey(name);
   if (key == nullptr) return why.append("unknown key (`vbutcher template info` lists them)");
+  const std::string_view written = text;
+  if (text.size() > 1 && text.front() == '+') text.remove_prefix(1);  // from_chars takes no '+'
   double value = 0;
   const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
   if (text.empty() || error != std::errc() || end != text.data() + text.size())
-    return why.append("'").append(text).append("' is not a number");
+    return why.append("'").append(written).append("' is not a number");
+  if (!std::isfinite(value)) return why.append("'").append(written).append("' is not finite");
   if (const std::string problem = CheckProfileValue(*key, value); !problem.empty())
     return why.append(problem);
   key->set(options, value);

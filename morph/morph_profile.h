@@ -37,10 +37,10 @@ const ProfileKey* FindProfileKey(std::string_view name);
 /// a count. Empty when it can.
 std::string CheckProfileValue(const ProfileKey& key, double value);
 
-/// Sets the key that @p setting names as "name=value" (e.g. "coarse.refit.rounds=0"); any key,
-/// the method's own too. Empty when set; else why not, naming the setting (no '=', an unknown
-/// key, a value that is not a number, or one CheckProfileValue refuses), and
-/// @p options is unchanged.
+/// Sets the key that @p setting names as "name=value" (e.g. "coarse.refit.rounds=0", the value
+/// a decimal number, "+" allowed); any key, the method's own too. Empty when set; else why not,
+/// naming the setting (no name or '=', an unknown key, a value that is not a finite number, or
+/// one CheckProfileValue refuses), and @p options is unchanged.
 std::string SetProfileKey(std::string_view setting, MorphOptions* options);
 
 /// Why @p options cannot be morphed with though each value is in its bounds (an end before

@@ -169,15 +169,16 @@ geometry::TriangleMesh BendShape(const geometry::TriangleMesh& mesh, std::uint64
 }
 
 morph::MorphOptions MorphProfileFrom(const std::vector<std::string>& settings,
-                                     const std::string& where, morph::MorphOptions options) {
+                                     const std::string& where, morph::MorphOptions options,
+                                     bool say) {
   for (const std::string& setting : settings) {
     if (const std::string problem = morph::SetProfileKey(setting, &options); !problem.empty())
       throw InputError(where + ": " + problem);
   }
   if (const std::string problem = morph::CheckProfile(options); !problem.empty())
     throw InputError(where + ": " + problem);
-  if (!settings.empty()) {
-    std::printf("profile: the defaults with");
+  if (say && !settings.empty()) {
+    std::printf("profile: set");
     for (const std::string& setting : settings) std::printf(" %s", setting.c_str());
     std::printf("\n");
   }
@@ -198,6 +199,18 @@ int RunBenchCommand(const BenchOptions& given) {
       (void)morph::BuildTemplateModel(io::ReadMesh(path));
     } catch (const InputError& e) {
       throw InputError("bench: --shapes " + path.string() + ": " + e.what());
+    }
+  }
+  // Settings refused before any model is built.
+  morph::MorphOptions with_rounds;
+  with_rounds.dense.rounds = given.dense_rounds;
+  (void)MorphProfileFrom(given.profile_settings, "bench: --set", with_rounds, false);
+  if (given.stage == "coarse") {
+    for (const std::string& setting : given.profile_settings) {
+      if (!setting.starts_with("coarse."))
+        throw InputError("bench: --set: " + setting.substr(0, setting.find('=')) +
+                         ": bench coarse runs the coarse stage alone, which reads only coarse.* "
+                         "keys (bench full reads them all)");
     }
   }
   BenchOptions options = given;

@@ -36,16 +36,21 @@ struct BenchOptions {
   /// Full stage: threads a morph runs on (morph::MorpherOptions::threads).
   int threads = morph::MorpherOptions{}.threads;
   std::filesystem::path csv;  ///< default bench_<stage>.csv
-  /// Profile keys set for this run, "name=value" (MorphProfileFrom), after the options above.
+  /// Profile keys set for this run, "name=value" (MorphProfileFrom), applied after
+  /// --dense-rounds (so they override it); the coarse stage takes only coarse.* keys. The
+  /// full stage's --shapes rows run the coarse and dense stages alone, so clean.*, check.*,
+  /// cuts.* and parts.* keys do not reach them.
   std::vector<std::string> profile_settings;
 };
 
-/// The code's default morph profile with each of @p settings ("name=value", any key of
-/// morph::ProfileKeys) set in turn, for a benchmark run that tries other values without a
-/// rebuild. @throws InputError naming @p where and the setting, for a setting SetProfileKey
-/// refuses or a profile CheckProfile refuses.
+/// @p options (by default the code's defaults) with each of @p settings ("name=value", any
+/// key of morph::ProfileKeys) set in turn, for a benchmark run that tries other values without
+/// a rebuild; when @p say and any are given, prints "profile: set name=value ...".
+/// @throws InputError naming @p where and the setting, for a setting SetProfileKey refuses, or
+/// the profile CheckProfile refuses.
 morph::MorphOptions MorphProfileFrom(const std::vector<std::string>& settings,
-                                     const std::string& where, morph::MorphOptions options = {});
+                                     const std::string& where, morph::MorphOptions options = {},
+                                     bool say = true);
 
 /// `vbutcher bench coarse`: morphs synthetic targets with known correspondence and prints a
 /// table (medians and means per noise level) and writes one CSV row per morph.

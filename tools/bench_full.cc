@@ -339,7 +339,7 @@ int RunFullBench(const BenchOptions& options) {
         const std::string step =
             sr.name + " sigma " + FormatMm(sigma) + " #" + std::to_string(i);
         const auto start = std::chrono::steady_clock::now();
-        const morph::CoarseResult coarse = morph::AlignCoarse(shape, noisy.V);
+        const morph::CoarseResult coarse = morph::AlignCoarse(shape, noisy.V, morph_options.coarse);
         if (!coarse.ok) {
           progress.Step(step + " failed");
           continue;

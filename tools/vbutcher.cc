@@ -211,7 +211,7 @@ int main(int argc, char** argv) {
   bench_cmd
       ->add_option("--set", bench.profile_settings,
                    "Profile key=value for this run (any key `vbutcher template info` lists; "
-                   "repeatable), after the options above")
+                   "repeatable; overrides --dense-rounds); bench coarse takes coarse.* keys only")
       ->allow_extra_args(false);
 
   vb::tools::VirtualRigCommandOptions virtual_rig;

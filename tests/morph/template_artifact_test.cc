@@ -220,8 +220,11 @@ TEST(MorphProfileTest, SetsAKeyFromNameEqualsValueOrSaysWhyNot) {
   MorphOptions options;
   EXPECT_EQ(SetProfileKey("coarse.refit.rounds=0", &options), "");
   EXPECT_EQ(options.coarse.refit.rounds, 0);
-  EXPECT_EQ(SetProfileKey("coarse.refit.keep_fraction=0.75", &options), "");
+  EXPECT_EQ(SetProfileKey("coarse.refit.keep_fraction=+0.75", &options), "");
   EXPECT_EQ(options.coarse.refit.keep_fraction, 0.75);
+  EXPECT_EQ(SetProfileKey("coarse.articulation.deformation.w_rot=1e-1", &options),
+            "");  // not config
+  EXPECT_EQ(options.coarse.articulation.deformation.w_rot, 0.1);
   const MorphOptions before = options;
   EXPECT_EQ(SetProfileKey("coarse.refit.rounds", &options),
             "'coarse.refit.rounds': expected name=value");
@@ -230,6 +233,9 @@ TEST(MorphProfileTest, SetsAKeyFromNameEqualsValueOrSaysWhyNot) {
             "coarse.refit.rounds: '' is not a number");
   EXPECT_EQ(SetProfileKey("coarse.refit.rounds=3x", &options),
             "coarse.refit.rounds: '3x' is not a number");
+  EXPECT_EQ(SetProfileKey("coarse.refit.rounds=inf", &options),
+            "coarse.refit.rounds: 'inf' is not finite");
+  EXPECT_EQ(SetProfileKey("=1", &options), "'=1': no key name before '='");
   EXPECT_THAT(SetProfileKey("coarse.refit.rounds=2.5", &options),
               HasSubstr("coarse.refit.rounds: 2.5 is not a whole number"));
   EXPECT_THAT(SetProfileKey("coarse.refit.keep_fraction=0.1", &options),

@@ -130,7 +130,7 @@ for method in coarse full; do
 done
 # A profile key set for one run reaches the morph: without the coarse refit the shadowed lamb's
 # coarse stage ends elsewhere than in the default run above. A bad setting is refused by name.
-check "bench shapes --set" 0 "profile: the defaults with coarse.refit.rounds=0" \
+check "bench shapes --set" 0 "profile: set coarse.refit.rounds=0" \
   "$vbutcher" bench shapes --shapes lamb --lamb-pairs 1 --sigmas-mm 0 --variants shadow --no-png \
   --set coarse.refit.rounds=0 --csv "$work/no_refit.csv"
 no_refit=$(column_of "$work/no_refit.csv" coarse mean_err_rel)
@@ -139,7 +139,9 @@ no_refit=$(column_of "$work/no_refit.csv" coarse mean_err_rel)
 check "bench shapes refuses a key out of bounds" 2 "bench shapes: --set: coarse.refit.keep_fraction: 0.1 is outside \[0.5, 1\]" \
   "$vbutcher" bench shapes --set coarse.refit.keep_fraction=0.1 --csv "$work/x.csv"
 check "bench refuses an unknown key" 2 "bench: --set: dense.nosuch: unknown key" \
-  "$vbutcher" bench full --pairs 1 --sigmas-mm 0 --set dense.nosuch=1 --csv "$work/x.csv"
+  "$vbutcher" bench --set dense.nosuch=1 full --pairs 1 --sigmas-mm 0 --csv "$work/x.csv"
+check "bench coarse refuses a key it does not read" 2 "bench: --set: dense.rounds: bench coarse runs the coarse stage alone" \
+  "$vbutcher" bench coarse --pairs 1 --sigmas-mm 0 --set dense.rounds=2 --csv "$work/x.csv"
 # A scan whose normals are all zero length (as the real lamb scan's are): they are dropped with
 # a warning naming the file, estimated, and the full morph runs and reports its fit.
 /usr/bin/python3 - "$work/set/target_001_cloud.ply" "$work/zero_normals.ply" <<'PY'
