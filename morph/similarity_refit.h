@@ -16,7 +16,7 @@ struct SimilarityRefitOptions {
   int samples = 3000;
   /// The nearest this share of the pairs is fitted (the rest, parts of the target the
   /// template does not reach, such as clutter or a limb it lacks, left out).
-  double keep_fraction = 0.9;
+  double keep_fraction = 0.95;
 };
 
 /// The similarity S (the target's frame to itself) bringing @p posed onto @p target as seen
