@@ -185,6 +185,12 @@ morph::MorphOptions MorphProfileFrom(const std::vector<std::string>& settings,
   return options;
 }
 
+morph::MorphOptions BenchMorphOptions(const BenchOptions& options, bool say) {
+  morph::MorphOptions given;
+  given.dense.rounds = options.dense_rounds;
+  return MorphProfileFrom(options.profile_settings, "bench: --set", given, say);
+}
+
 int RunBenchCommand(const BenchOptions& given) {
   if (given.stage != "coarse" && given.stage != "full")
     throw InputError("bench: stage '" + given.stage + "' is neither 'coarse' nor 'full'");
@@ -201,10 +207,7 @@ int RunBenchCommand(const BenchOptions& given) {
       throw InputError("bench: --shapes " + path.string() + ": " + e.what());
     }
   }
-  // Settings refused before any model is built.
-  morph::MorphOptions with_rounds;
-  with_rounds.dense.rounds = given.dense_rounds;
-  (void)MorphProfileFrom(given.profile_settings, "bench: --set", with_rounds, false);
+  (void)BenchMorphOptions(given, false);  // settings refused before any model is built
   if (given.stage == "coarse") {
     for (const std::string& setting : given.profile_settings) {
       if (!setting.starts_with("coarse."))
@@ -224,8 +227,7 @@ int RunBenchCommand(const BenchOptions& given) {
   model_options.feature_source =
       morph::FeatureSourceNamed(options.template_features, "bench: --template-features");
   const morph::TemplateModel lamb = morph::BuildTemplateModel(carcass.mesh, model_options);
-  const morph::CoarseOptions coarse =
-      MorphProfileFrom(options.profile_settings, "bench: --set").coarse;
+  const morph::CoarseOptions coarse = BenchMorphOptions(options).coarse;
   std::printf(
       "lamb template: %d vertices, model built in %.2f s (%d terminals, %d junctions, %d graph "
       "nodes)\n",

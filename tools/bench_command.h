@@ -52,6 +52,10 @@ morph::MorphOptions MorphProfileFrom(const std::vector<std::string>& settings,
                                      const std::string& where, morph::MorphOptions options = {},
                                      bool say = true);
 
+/// The morph options `bench coarse` and `bench full` run with: the code's defaults with
+/// --dense-rounds, then @p options.profile_settings (MorphProfileFrom, "bench: --set").
+morph::MorphOptions BenchMorphOptions(const BenchOptions& options, bool say = true);
+
 /// `vbutcher bench coarse`: morphs synthetic targets with known correspondence and prints a
 /// table (medians and means per noise level) and writes one CSV row per morph.
 int RunBenchCommand(const BenchOptions& options);

@@ -216,10 +216,7 @@ int RunFullBench(const BenchOptions& options) {
   std::printf("lamb template: %d vertices, model built in %.2f s (%d graph nodes)\n",
               model.mesh.num_vertices(), model.seconds, model.graph.num_nodes());
   if (options.dense_rounds < 1) throw InputError("bench: --dense-rounds must be at least 1");
-  morph::MorphOptions given;
-  given.dense.rounds = options.dense_rounds;
-  const morph::MorphOptions morph_options =
-      MorphProfileFrom(options.profile_settings, "bench: --set", given);
+  const morph::MorphOptions morph_options = BenchMorphOptions(options);
   morph::WorkerPool pool(options.threads);
   const morph::DenseOptions& dense_options = morph_options.dense;
   // The rig's carcasses hang from the gambrel, as on the line: the daemon's upright prior.
