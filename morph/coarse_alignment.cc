@@ -426,6 +426,12 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
         result.runner_up_disagreement =
             std::min(result.runner_up_disagreement, disagreements[k] / scale);
     }
+    result.choices.reserve(static_cast<std::size_t>(std::count_if(
+        disagreements.begin(), disagreements.end(), [](double d) { return std::isfinite(d); })));
+    for (std::size_t k = 0; k < candidates.size(); ++k) {
+      if (std::isfinite(disagreements[k]))
+        result.choices.push_back({candidates[k].from_to.R, disagreements[k] / scale});
+    }
   }
   // The chosen placement may come from a pairing with one pair wrong (a neck taken for a
   // fore leg) that still overlaps the surfaces best. The pairs the deformation pulls on are

@@ -2,6 +2,7 @@
 
 #include <Eigen/Core>
 #include <string>
+#include <vector>
 
 #include "geometry/triangle_mesh.h"
 #include "morph/articulated_fit.h"
@@ -73,6 +74,16 @@ struct CoarseOptions {
   SimilarityRefitOptions refit;
 };
 
+/// A placement the coarse stage's choice compared.
+struct PlacementChoice {
+  /// Its rotation, the template's normalised frame to the target's (Similarity::R): the
+  /// placement before any posture fit.
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  /// Its disagreement when the choice was made, template sizes, as
+  /// CoarseResult::choice_disagreement is measured.
+  double disagreement = 0.0;
+};
+
 /// The outcome of the coarse stage. Expected trouble (a skeleton with too few feature nodes,
 /// a solver failure) is reported in `ok`/`error`, never thrown.
 struct CoarseResult {
@@ -118,6 +129,11 @@ struct CoarseResult {
   /// none, 0 when nothing was chosen. Close to choice_disagreement, the skeletons and
   /// surfaces could not tell two placements apart.
   double runner_up_disagreement = 0.0;
+  /// Every placement the choice compared, the chosen one among them, in the order they were
+  /// proposed: those given the choice's rounds of posture fit, or every candidate when none
+  /// was. For reports and for the shape benchmark's account of turned placements (how near
+  /// the truth the nearest one lay and how it scored).
+  std::vector<PlacementChoice> choices;
   double skeleton_seconds = 0.0;
   double association_seconds = 0.0;
   double deformation_seconds = 0.0;

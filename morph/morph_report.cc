@@ -85,6 +85,15 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
       {"refit_turn_deg", Eigen::AngleAxisd(r.refit.R).angle() * 180.0 / std::numbers::pi}};
   if (std::isfinite(r.runner_up_disagreement))
     j["association"]["runner_up_disagreement"] = r.runner_up_disagreement;
+  // Each placement the choice compared: its turn from the chosen one and its score.
+  nlohmann::json placements = nlohmann::json::array();
+  for (const PlacementChoice& p : r.choices) {
+    const Eigen::Matrix3d turn = p.R * r.placement.R.transpose();
+    placements.push_back(
+        {{"turn_from_chosen_deg", Eigen::AngleAxisd(turn).angle() * 180.0 / std::numbers::pi},
+         {"disagreement", p.disagreement}});
+  }
+  j["association"]["placements_compared"] = placements;
   nlohmann::json& deformation = j["deformation"];
   deformation["graph_nodes"] = model.graph.num_nodes();
   deformation["graph_edges"] = model.graph.edges.size();

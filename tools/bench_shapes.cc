@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <numbers>
 #include <numeric>
@@ -64,6 +65,13 @@ struct Row {
   double confidence = std::nan(""), ambiguity = std::nan(""), unexplained = std::nan("");
   double reach = std::nan(""), noise = std::nan(""), reach_allowance = std::nan(""),
          stretch = std::nan(""), size = std::nan("");
+  /// The placements the coarse stage's choice compared (CoarseResult::choices), on the coarse
+  /// and full rows: how many, the least turn of one of them from the truth's best rotation
+  /// (degrees), and that placement's score at the choice over the chosen one's (1 when it
+  /// was chosen). A flip with a placement near the truth that scored worse is the choice's
+  /// failure; one without any is the posture fit's (docs/decisions.md).
+  int placements_compared = 0;
+  double nearest_placement_deg = std::nan(""), nearest_placement_score = std::nan("");
 };
 
 double Since(std::chrono::steady_clock::time_point start) {
@@ -324,6 +332,20 @@ void Score(const Eigen::Matrix3Xd& result, const Eigen::Matrix3Xd& truth,
   row->max_err_rel = e.maxCoeff() / size;
   row->placement_err_deg = AngleDeg(BestRotation(rest, result).transpose() * BestRotation(rest, truth));
   row->ok = true;
+}
+
+// The placements @p coarse compared, against the truth's best rotation @p truth_R.
+void ScorePlacements(const morph::CoarseResult& coarse, const Eigen::Matrix3d& truth_R, Row* row) {
+  row->placements_compared = static_cast<int>(coarse.choices.size());
+  double nearest = std::numeric_limits<double>::infinity();
+  for (const morph::PlacementChoice& p : coarse.choices) {
+    const double deg = AngleDeg(p.R.transpose() * truth_R);
+    if (deg < nearest) {
+      nearest = deg;
+      row->nearest_placement_deg = deg;
+      row->nearest_placement_score = p.disagreement / coarse.choice_disagreement;
+    }
+  }
 }
 
 // x y z per line, and the value of @p extra (when given) as a fourth column.
@@ -717,6 +739,9 @@ int RunShapeBench(const ShapeBenchOptions& options) {
           std::string error;
           if (coarse.ok) {
             Score(coarse.mesh.V, placed.V, rest, &coarse_row);
+            const Eigen::Matrix3d truth_R = BestRotation(rest, placed.V);
+            ScorePlacements(coarse, truth_R, &coarse_row);
+            ScorePlacements(coarse, truth_R, &full_row);
             full_row.seconds = morphed.seconds;
             if (dense.ok) {
               Score(dense.mesh.V, placed.V, rest, &full_row);
@@ -784,7 +809,8 @@ int RunShapeBench(const ShapeBenchOptions& options) {
     std::ofstream csv(options.csv);
     csv << "shape,family,source,pair,pose_change_deg,sigma_mm,variant,method,points,"
            "template_vertices,wrap_alpha,wrap_offset,ok,mean_err_rel,max_err_rel,placement_err_deg,"
-           "seconds,confidence,ambiguity,unexplained,reach,noise,reach_allowance,stretch,size\n";
+           "seconds,confidence,ambiguity,unexplained,reach,noise,reach_allowance,stretch,size,"
+           "placements_compared,nearest_placement_deg,nearest_placement_score\n";
     for (const Row& r : rows) {
       csv << r.shape << ',' << r.family << ',' << r.source << ',' << r.pair << ','
           << r.pose_change_deg << ',' << r.sigma_mm << ',' << r.variant << ',' << r.method << ','
@@ -793,7 +819,9 @@ int RunShapeBench(const ShapeBenchOptions& options) {
           << (r.shape == "lamb" ? 0.0 : options.wrap_offset) << ',' << r.ok << ',' << r.mean_err_rel
           << ',' << r.max_err_rel << ',' << r.placement_err_deg << ',' << r.seconds << ','
           << r.confidence << ',' << r.ambiguity << ',' << r.unexplained << ',' << r.reach << ','
-          << r.noise << ',' << r.reach_allowance << ',' << r.stretch << ',' << r.size << '\n';
+          << r.noise << ',' << r.reach_allowance << ',' << r.stretch << ',' << r.size << ','
+          << r.placements_compared << ',' << r.nearest_placement_deg << ','
+          << r.nearest_placement_score << '\n';
     }
     if (!csv) throw std::runtime_error("cannot write " + options.csv.string());
   }

@@ -2,8 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <string>
 
 #include "geometry/mesh_measures.h"
@@ -194,6 +197,22 @@ TEST_F(MorphCheckTest, AmbiguityComparesBothPlacementsWhenTheChoiceWasMade) {
   EXPECT_LT(coarse.choice_disagreement, coarse.runner_up_disagreement);
   // The posture fit's remaining rounds lowered the chosen placement's disagreement.
   EXPECT_LT(coarse.disagreement, coarse.choice_disagreement);
+  // The placements compared, as reports and the shape benchmark read them: the chosen one
+  // (turned 0 degrees from the placement kept) scored choice_disagreement, and the least score
+  // of those turned distinct_angle_deg or more from it is the runner-up's.
+  ASSERT_GE(coarse.choices.size(), 2u);
+  const double distinct_deg = Upright().coarse.distinct_angle_deg;
+  int chosen = 0;
+  double runner_up = std::numeric_limits<double>::infinity();
+  for (const PlacementChoice& p : coarse.choices) {
+    const double deg =
+        Eigen::AngleAxisd(p.R * coarse.placement.R.transpose()).angle() * 180.0 / std::numbers::pi;
+    EXPECT_GE(p.disagreement, coarse.choice_disagreement);
+    if (deg < 1e-9 && p.disagreement == coarse.choice_disagreement) ++chosen;
+    if (deg > distinct_deg) runner_up = std::min(runner_up, p.disagreement);
+  }
+  EXPECT_EQ(chosen, 1);
+  EXPECT_EQ(runner_up, coarse.runner_up_disagreement);
 
   // Chosen rigidly (no posture fit before the choice): the same ratio, of the rigid fits.
   MorphOptions rigid = Upright();

@@ -51,6 +51,18 @@ for (shape, method), value in measured.items():
     got = float(by[(shape, "0", "clean", method)]["mean_err_rel"])
     if not got < 1.5 * value:
         fail.append(f"{shape} {method} mean error {100 * got:.2f} % (measured {100 * value:.2f} %)")
+# The placements the coarse stage's choice compared: at least one; none scored less than the
+# chosen one; on the lamb the nearest to the truth is the chosen one, its rigid placement
+# 1.71 degrees from the truth's best rotation (measured; bound 1.5 times that).
+for (shape, sigma, variant, method), r in by.items():
+    if method in ("coarse", "full") and r["ok"] == "1":
+        if not (int(r["placements_compared"]) >= 1 and float(r["nearest_placement_score"]) >= 1.0):
+            fail.append(f"{shape} {sigma} {variant} {method}: placements compared {r['placements_compared']}, "
+                        f"the nearest scoring {r['nearest_placement_score']} of the chosen")
+near = by[("lamb", "0", "clean", "coarse")]
+if not (float(near["nearest_placement_deg"]) < 2.6 and float(near["nearest_placement_score"]) == 1.0):
+    fail.append(f"lamb: nearest placement {near['nearest_placement_deg']} degrees from the truth, "
+                f"scoring {near['nearest_placement_score']} of the chosen")
 lamb = float(by[("lamb", "0", "clean", "full")]["mean_err_rel"])
 # Stray points and a detached ball (5 % of the points) are left out before the morph: the full
 # morph then errs about as on the clean cloud (measured: sydney 0.7 % more, spiderblob 1.7 %
