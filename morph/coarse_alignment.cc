@@ -412,6 +412,8 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
         disagreements[k] = articulated[k] * candidates[chosen].from_to.scale;
     }
     result.association = candidates[chosen];
+    // Set again by Finish; here as well so that a stage failing later still reports it.
+    result.placement = candidates[chosen].from_to;
     result.placed_by_skeletons = chosen < skeleton_candidates;
     const double scale = result.association.from_to.scale;  // target units per template size
     result.disagreement = disagreements[chosen] / scale;

@@ -79,8 +79,10 @@ struct PlacementChoice {
   /// Its rotation, the template's normalised frame to the target's (Similarity::R): the
   /// placement before any posture fit.
   Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
-  /// Its disagreement when the choice was made, template sizes, as
-  /// CoarseResult::choice_disagreement is measured.
+  /// Its score when the choice was made, as CoarseResult::choice_disagreement is measured:
+  /// the trimmed disagreement after the choice's posture-fit rounds, template sizes; when no
+  /// candidate was fitted, the rigid disagreement in target units over the chosen
+  /// placement's scale.
   double disagreement = 0.0;
 };
 
@@ -130,9 +132,10 @@ struct CoarseResult {
   /// surfaces could not tell two placements apart.
   double runner_up_disagreement = 0.0;
   /// Every placement the choice compared, the chosen one among them, in the order they were
-  /// proposed: those given the choice's rounds of posture fit, or every candidate when none
-  /// was. For reports and for the shape benchmark's account of turned placements (how near
-  /// the truth the nearest one lay and how it scored).
+  /// proposed: those whose choice rounds of posture fit succeeded, or every candidate when
+  /// none was fitted. Empty when nothing was chosen. For reports and for the shape
+  /// benchmark's account of turned placements (how near the truth the nearest one lay and how
+  /// it scored).
   std::vector<PlacementChoice> choices;
   double skeleton_seconds = 0.0;
   double association_seconds = 0.0;

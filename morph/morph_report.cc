@@ -1,10 +1,10 @@
 #include "morph/morph_report.h"
 
-#include <Eigen/Geometry>
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
-#include <numbers>
+
+#include "geometry/rotation.h"
 
 namespace vb::morph {
 namespace {
@@ -72,25 +72,26 @@ void WriteMorphReport(const std::filesystem::path& path, const TemplateModel& mo
     pairs.push_back({{"kind", "terminal"}, {"template", a}, {"target", b}});
   for (const auto& [a, b] : r.association.junctions)
     pairs.push_back({{"kind", "junction"}, {"template", a}, {"target", b}});
-  j["association"] = {
-      {"pairs", pairs},
-      {"rms_residual", r.association.rms_residual},
-      {"candidates_evaluated", r.association.candidates},
-      {"candidates_pruned", r.association.pruned},
-      {"scale", r.template_to_target.scale / model.size},
-      {"placement", r.placed_by_skeletons ? "skeleton pairing" : "principal axes"},
-      {"surface_disagreement", r.disagreement},
-      {"choice_disagreement", r.choice_disagreement},
-      {"refit_scale", r.refit.scale},
-      {"refit_turn_deg", Eigen::AngleAxisd(r.refit.R).angle() * 180.0 / std::numbers::pi}};
+  j["association"] = {{"pairs", pairs},
+                      {"rms_residual", r.association.rms_residual},
+                      {"candidates_evaluated", r.association.candidates},
+                      {"candidates_pruned", r.association.pruned},
+                      {"scale", r.template_to_target.scale / model.size},
+                      {"placement", r.placed_by_skeletons ? "skeleton pairing" : "principal axes"},
+                      {"surface_disagreement", r.disagreement},
+                      {"choice_disagreement", r.choice_disagreement},
+                      {"refit_scale", r.refit.scale},
+                      {"refit_turn_deg", geometry::RotationAngleDeg(r.refit.R)}};
   if (std::isfinite(r.runner_up_disagreement))
     j["association"]["runner_up_disagreement"] = r.runner_up_disagreement;
   // Each placement the choice compared: its turn from the chosen one and its score.
   nlohmann::json placements = nlohmann::json::array();
   for (const PlacementChoice& p : r.choices) {
-    const Eigen::Matrix3d turn = p.R * r.placement.R.transpose();
+    // The chosen one's R is a copy of the placement's.
+    const bool chosen = p.R == r.placement.R;
     placements.push_back(
-        {{"turn_from_chosen_deg", Eigen::AngleAxisd(turn).angle() * 180.0 / std::numbers::pi},
+        {{"chosen", chosen},
+         {"turn_from_chosen_deg", geometry::RotationAngleDeg(p.R * r.placement.R.transpose())},
          {"disagreement", p.disagreement}});
   }
   j["association"]["placements_compared"] = placements;

@@ -24,6 +24,7 @@
 
 #include "geometry/mesh_measures.h"
 #include "geometry/mesh_topology.h"
+#include "geometry/rotation.h"
 #include "geometry/surface_sampling.h"
 #include "io/error.h"
 #include "io/mesh_io.h"
@@ -67,9 +68,9 @@ struct Row {
          stretch = std::nan(""), size = std::nan("");
   /// The placements the coarse stage's choice compared (CoarseResult::choices), on the coarse
   /// and full rows: how many, the least turn of one of them from the truth's best rotation
-  /// (degrees), and that placement's score at the choice over the chosen one's (1 when it
-  /// was chosen). A flip with a placement near the truth that scored worse is the choice's
-  /// failure; one without any is the posture fit's (docs/decisions.md).
+  /// (degrees; the rigid placement, before any posture fit), and that placement's score at
+  /// the choice over the chosen one's (1 when it was chosen). benchmarks-doc tells the flips
+  /// apart by them.
   int placements_compared = 0;
   double nearest_placement_deg = std::nan(""), nearest_placement_score = std::nan("");
 };
@@ -318,10 +319,6 @@ Eigen::Matrix3d BestRotation(const Eigen::Matrix3Xd& from, const Eigen::Matrix3X
   return morph::Similarity::FromUmeyama(Eigen::umeyama(from, to, true)).R;
 }
 
-double AngleDeg(const Eigen::Matrix3d& R) {
-  return Eigen::AngleAxisd(R).angle() * 180.0 / std::numbers::pi;
-}
-
 // Errors of @p result (template vertices) against @p truth, relative to the target's size
 // (TrueSize: the template's diagonal times the scale of the best similarity onto the truth).
 void Score(const Eigen::Matrix3Xd& result, const Eigen::Matrix3Xd& truth,
@@ -330,7 +327,8 @@ void Score(const Eigen::Matrix3Xd& result, const Eigen::Matrix3Xd& truth,
   const Eigen::VectorXd e = (result - truth).colwise().norm();
   row->mean_err_rel = e.mean() / size;
   row->max_err_rel = e.maxCoeff() / size;
-  row->placement_err_deg = AngleDeg(BestRotation(rest, result).transpose() * BestRotation(rest, truth));
+  row->placement_err_deg = geometry::RotationAngleDeg(BestRotation(rest, result).transpose() *
+                                                      BestRotation(rest, truth));
   row->ok = true;
 }
 
@@ -339,11 +337,15 @@ void ScorePlacements(const morph::CoarseResult& coarse, const Eigen::Matrix3d& t
   row->placements_compared = static_cast<int>(coarse.choices.size());
   double nearest = std::numeric_limits<double>::infinity();
   for (const morph::PlacementChoice& p : coarse.choices) {
-    const double deg = AngleDeg(p.R.transpose() * truth_R);
+    const double deg = geometry::RotationAngleDeg(p.R.transpose() * truth_R);
     if (deg < nearest) {
       nearest = deg;
       row->nearest_placement_deg = deg;
-      row->nearest_placement_score = p.disagreement / coarse.choice_disagreement;
+      // The chosen one's score is choice_disagreement itself: 1 exactly.
+      row->nearest_placement_score =
+          coarse.choice_disagreement > 0.0 ? p.disagreement / coarse.choice_disagreement
+          : p.disagreement > 0.0           ? std::numeric_limits<double>::infinity()
+                                           : 1.0;
     }
   }
 }

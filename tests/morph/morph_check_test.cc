@@ -2,14 +2,13 @@
 
 #include <gtest/gtest.h>
 
-#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <numbers>
 #include <string>
 
 #include "geometry/mesh_measures.h"
+#include "geometry/rotation.h"
 #include "morph/morph_carcass.h"
 #include "perception/carcass_generator.h"
 #include "tests/support/lamb_fixture.h"
@@ -205,10 +204,12 @@ TEST_F(MorphCheckTest, AmbiguityComparesBothPlacementsWhenTheChoiceWasMade) {
   int chosen = 0;
   double runner_up = std::numeric_limits<double>::infinity();
   for (const PlacementChoice& p : coarse.choices) {
-    const double deg =
-        Eigen::AngleAxisd(p.R * coarse.placement.R.transpose()).angle() * 180.0 / std::numbers::pi;
+    const double deg = geometry::RotationAngleDeg(p.R * coarse.placement.R.transpose());
     EXPECT_GE(p.disagreement, coarse.choice_disagreement);
-    if (deg < 1e-9 && p.disagreement == coarse.choice_disagreement) ++chosen;
+    if (p.R == coarse.placement.R) {  // the chosen one: a copy of the placement
+      ++chosen;
+      EXPECT_EQ(p.disagreement, coarse.choice_disagreement);
+    }
     if (deg > distinct_deg) runner_up = std::min(runner_up, p.disagreement);
   }
   EXPECT_EQ(chosen, 1);
@@ -222,6 +223,14 @@ TEST_F(MorphCheckTest, AmbiguityComparesBothPlacementsWhenTheChoiceWasMade) {
   ASSERT_TRUE(by_rigid_fits.ok) << by_rigid_fits.error;
   EXPECT_GT(by_rigid_fits.coarse.choice_disagreement, 0.0);
   EXPECT_EQ(by_rigid_fits.coarse.choice_disagreement, by_rigid_fits.coarse.disagreement);
+  // Every rigid placement was compared, the chosen one scoring choice_disagreement.
+  ASSERT_GE(by_rigid_fits.coarse.choices.size(), coarse.choices.size());
+  const Eigen::Matrix3d& rigid_R = by_rigid_fits.coarse.placement.R;
+  const auto rigid_chosen =
+      std::find_if(by_rigid_fits.coarse.choices.begin(), by_rigid_fits.coarse.choices.end(),
+                   [&](const PlacementChoice& p) { return p.R == rigid_R; });
+  ASSERT_NE(rigid_chosen, by_rigid_fits.coarse.choices.end());
+  EXPECT_EQ(rigid_chosen->disagreement, by_rigid_fits.coarse.choice_disagreement);
   EXPECT_EQ(by_rigid_fits.check.ambiguity,
             by_rigid_fits.coarse.choice_disagreement / by_rigid_fits.coarse.runner_up_disagreement);
 

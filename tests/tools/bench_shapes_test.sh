@@ -9,7 +9,7 @@
 # posture fit left bare; and the lamb in wider poses (--lamb-pose-scale); a limb's end a shadow
 # cut off, put back (--variants severed); a floor the body rests on, left out (--variants
 # floor); what two cameras, then one, see (--variants views); and two exported files of one
-# name refused.
+# name refused. Also the placements the coarse stage's choice compared, as the CSV gives them.
 set -euo pipefail
 vbutcher=$1
 work=$(mktemp -d)

@@ -61,12 +61,14 @@ a = json.load(open(sys.argv[1]))["association"]
 sys.exit(0 if 0.5 <= a["refit_scale"] <= 2.0 and 0.0 <= a["refit_turn_deg"] <= 180.0 else 1)' "$work/r.json" \
   || { echo "FAIL: report lacks the refit's scale and turn, or they are out of range"; failures=$((failures + 1)); }
 # The placements the choice compared: one of them the chosen (no turn, the choice's score),
-# none scoring less.
+# the others turned from it.
 /usr/bin/python3 -c 'import json, sys
 a = json.load(open(sys.argv[1]))["association"]
 p = a["placements_compared"]
-chosen = [q for q in p if q["turn_from_chosen_deg"] < 1e-6 and q["disagreement"] == a["choice_disagreement"]]
-sys.exit(0 if len(chosen) == 1 and all(q["disagreement"] >= a["choice_disagreement"] for q in p) else 1)' "$work/r.json" \
+chosen = [q for q in p if q["chosen"]]
+sys.exit(0 if len(chosen) == 1 and chosen[0]["turn_from_chosen_deg"] < 1e-6
+         and chosen[0]["disagreement"] == a["choice_disagreement"]
+         and all(q["turn_from_chosen_deg"] > 0 for q in p if not q["chosen"]) else 1)' "$work/r.json" \
   || { echo "FAIL: report lacks the placements compared, or the chosen one is not the least"; failures=$((failures + 1)); }
 # The upright prior: targets hanging from the gambrel, as on the line.
 check "synth writes hanging targets" 0 "template:" "$vbutcher" synth --out "$work/up" --count 1 --seed 4 --upright

@@ -12,10 +12,10 @@
 #include <functional>
 #include <initializer_list>
 #include <map>
-#include <numbers>
 #include <set>
 
 #include "geometry/mesh_measures.h"
+#include "geometry/rotation.h"
 #include "io/error.h"
 #include "io/read_limits.h"
 #include "io/yaml_reader.h"
@@ -406,7 +406,7 @@ double PoseChangeDeg(const Eigen::Matrix3Xd& rest, const Eigen::Matrix3Xd& posed
     for (int j : near) H += (aligned.col(j) - aligned.col(i)) * (rest.col(j) - rest.col(i)).transpose();
     const Eigen::Matrix3d R = morph::NearestRotation(
         Eigen::JacobiSVD<Eigen::Matrix3d>(H, Eigen::ComputeFullU | Eigen::ComputeFullV));
-    angles[static_cast<std::size_t>(i)] = Eigen::AngleAxisd(R).angle() * 180.0 / std::numbers::pi;
+    angles[static_cast<std::size_t>(i)] = geometry::RotationAngleDeg(R);
   }
   const std::size_t k = angles.size() * 9 / 10;
   std::nth_element(angles.begin(), angles.begin() + static_cast<std::ptrdiff_t>(k), angles.end());
