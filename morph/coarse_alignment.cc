@@ -428,8 +428,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
         result.runner_up_disagreement =
             std::min(result.runner_up_disagreement, disagreements[k] / scale);
     }
-    result.choices.reserve(static_cast<std::size_t>(std::count_if(
-        disagreements.begin(), disagreements.end(), [](double d) { return std::isfinite(d); })));
+    result.choices.reserve(candidates.size());
     for (std::size_t k = 0; k < candidates.size(); ++k) {
       if (std::isfinite(disagreements[k]))
         result.choices.push_back({candidates[k].from_to.R, disagreements[k] / scale});
