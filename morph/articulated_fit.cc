@@ -1,5 +1,6 @@
 #include "morph/articulated_fit.h"
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
@@ -167,6 +168,67 @@ double TrimmedDisagreement(const Eigen::Matrix3Xd& a, const PointIndex& a_index,
                 TrimmedMean(std::move(backward), keep_fraction));
 }
 
+std::vector<double> HalfTurnAsymmetry(const Eigen::Matrix3Xd& samples) {
+  VB_DEMAND(samples.cols() > 0);
+  const Eigen::Vector3d mean = samples.rowwise().mean();
+  const Eigen::Matrix3Xd centred = samples.colwise() - mean;
+  // Eigenvalues ascending: column 2 is the longest axis.
+  const Eigen::Matrix3d axes =
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(centred * centred.transpose()).eigenvectors();
+  const Eigen::Matrix3d half = Eigen::AngleAxisd(std::numbers::pi, axes.col(2)).toRotationMatrix();
+  const PointIndex index(samples);
+  std::vector<double> out(static_cast<std::size_t>(samples.cols()));
+  for (Eigen::Index i = 0; i < samples.cols(); ++i) {
+    const Eigen::Vector3d turned = mean + half * centred.col(i);
+    out[static_cast<std::size_t>(i)] = (samples.col(index.Nearest(turned)) - turned).norm();
+  }
+  return out;
+}
+
+double WeightedTrimmedDisagreement(const Eigen::Matrix3Xd& a, const PointIndex& a_index,
+                                   const std::vector<double>& a_weights,
+                                   const Eigen::Matrix3Xd& b_samples, const PointIndex& b_index,
+                                   double keep_fraction) {
+  VB_DEMAND(a_index.size() > 0 && b_index.size() > 0);
+  VB_DEMAND(a_weights.size() == static_cast<std::size_t>(a.cols()));
+  std::vector<double> forward(static_cast<std::size_t>(a.cols()));
+  std::vector<double> backward(static_cast<std::size_t>(b_samples.cols()));
+  std::vector<int> backward_partner(backward.size());
+  std::vector<int> k;
+  std::vector<double> d2;
+  for (Eigen::Index i = 0; i < a.cols(); ++i) {
+    b_index.Nearest(a.col(i), 1, &k, &d2);
+    forward[static_cast<std::size_t>(i)] = std::sqrt(d2.front());
+  }
+  for (Eigen::Index i = 0; i < b_samples.cols(); ++i) {
+    a_index.Nearest(b_samples.col(i), 1, &k, &d2);
+    backward[static_cast<std::size_t>(i)] = std::sqrt(d2.front());
+    backward_partner[static_cast<std::size_t>(i)] = k.front();
+  }
+  // The kept distances' weighted mean; their plain mean when the kept weights sum to zero.
+  const auto weighted_mean = [&](const std::vector<double>& d, auto weight_of) {
+    if (d.empty()) return 0.0;
+    const double limit = KeepLimit(d, keep_fraction);
+    double sum = 0.0, weights = 0.0, plain = 0.0;
+    int count = 0;
+    for (std::size_t i = 0; i < d.size(); ++i) {
+      if (d[i] > limit) continue;
+      const double w = weight_of(i);
+      VB_DEMAND(w >= 0.0);
+      sum += w * d[i];
+      weights += w;
+      plain += d[i];
+      ++count;
+    }
+    if (weights > 0.0) return sum / weights;
+    return count > 0 ? plain / count : 0.0;
+  };
+  return 0.5 * (weighted_mean(forward, [&](std::size_t i) { return a_weights[i]; }) +
+                weighted_mean(backward, [&](std::size_t i) {
+                  return a_weights[static_cast<std::size_t>(backward_partner[i])];
+                }));
+}
+
 ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::Matrix3Xd& target,
                                       const PointIndex& target_index,
                                       const Eigen::Matrix3Xd& target_terminals,
@@ -332,9 +394,16 @@ ArticulationResult ArticulateTemplate(const TemplateModel& model, const Eigen::M
   Eigen::Matrix3Xd posed_there(3, ns);
   for (Eigen::Index i = 0; i < ns; ++i) posed_there.col(i) = placement(posed.col(i));
   const PointIndex posed_there_index(posed_there);
-  result.disagreement = TrimmedDisagreement(posed_there, posed_there_index, samples_there,
-                                            target_index, options.keep_fraction) /
-                        placement.scale;
+  if (options.weigh_by_asymmetry) {
+    const std::vector<double> asymmetry = HalfTurnAsymmetry(rest);
+    result.disagreement =
+        WeightedTrimmedDisagreement(posed_there, posed_there_index, asymmetry, samples_there,
+                                    target_index, options.keep_fraction);
+  } else {
+    result.disagreement = TrimmedDisagreement(posed_there, posed_there_index, samples_there,
+                                              target_index, options.keep_fraction);
+  }
+  result.disagreement /= placement.scale;
   const Eigen::Matrix4d T = Eigen::umeyama(rest, posed, true);
   const Eigen::Matrix3Xd rigid = (T.topLeftCorner<3, 3>() * rest).colwise() + T.topRightCorner<3, 1>();
   result.bend = (posed - rigid).colwise().norm().mean();

@@ -23,8 +23,13 @@ struct ArticulationOptions {
   int target_samples = 600;
   /// Of the template's pairs, the nearest this fraction are kept (eq. 12's trimming, by
   /// distance): a region the target does not show (a camera shadow, a lost limb) has far
-  /// partners only and does not pull. Also the trimming of TrimmedDisagreement.
+  /// partners only and does not pull. Also the trimming of ArticulationResult::disagreement.
   double keep_fraction = 0.8;
+  /// Whether ArticulationResult::disagreement weighs each template sample by how unlike the
+  /// template is to itself turned belly for back there (HalfTurnAsymmetry), and each target
+  /// sample by its nearest posed sample's weight: what the coarse stage's choice between
+  /// placements reads. false: every sample alike (TrimmedDisagreement).
+  bool weigh_by_asymmetry = false;
   /// Of the target's pairs, the nearest this fraction are kept. All of them by default: the
   /// target shows part of the template's surface, so every target point has a partner on
   /// it, and the farthest are those of a limb the template has not yet reached, the pairs
@@ -183,7 +188,8 @@ struct ArticulationResult {
   bool ok = false;
   DeformationState state;
   /// Trimmed two-way disagreement after the last round: mean of the kept closest-point
-  /// distances, template sizes.
+  /// distances (TrimmedDisagreement), weighted by the template's asymmetry when
+  /// ArticulationOptions::weigh_by_asymmetry (WeightedTrimmedDisagreement), template sizes.
   double disagreement = 0.0;
   /// How far the pose bends the template: the mean distance of the posed samples from the
   /// best similarity image of their rest positions, template sizes.
@@ -204,6 +210,23 @@ std::vector<std::pair<int, int>> MutualNearestPairs(const Eigen::Matrix3Xd& a,
 double TrimmedDisagreement(const Eigen::Matrix3Xd& a, const PointIndex& a_index,
                            const Eigen::Matrix3Xd& b_samples, const PointIndex& b_index,
                            double keep_fraction);
+
+/// How unlike a shape is to itself turned half round about its longest principal axis, per
+/// sample: for each column of @p samples, the distance from its image under that half turn
+/// (about the samples' mean) to the nearest column. About the samples' spacing where the
+/// turn maps the shape onto itself (a trunk round in section, a limb with a partner
+/// opposite), large where it would not (a face, feet, a tail). In the samples' units.
+/// @pre at least one column.
+std::vector<double> HalfTurnAsymmetry(const Eigen::Matrix3Xd& samples);
+
+/// TrimmedDisagreement with weights: the nearest @p keep_fraction of the distances each way
+/// are kept as there, then averaged with the weight @p a_weights gives each column of @p a,
+/// and, from @p b_samples, the weight of its nearest column of @p a. Weights summing to zero
+/// on a side count every kept distance alike. @pre a_weights.size() == a.cols(), none negative.
+double WeightedTrimmedDisagreement(const Eigen::Matrix3Xd& a, const PointIndex& a_index,
+                                   const std::vector<double>& a_weights,
+                                   const Eigen::Matrix3Xd& b_samples, const PointIndex& b_index,
+                                   double keep_fraction);
 
 /// Non-rigid closest-point fitting of the template's posture to a placed target: each round
 /// pairs template samples with their nearest target points and target samples with their

@@ -384,6 +384,7 @@ CoarseResult AlignCoarse(const TemplateModel& model, const Eigen::Matrix3Xd& tar
     }
     ArticulationOptions choice = options.articulation;
     choice.rounds = std::min(choice.rounds, options.choice_rounds);
+    choice.weigh_by_asymmetry = options.choice_by_asymmetry;
     // Branch pulls draw a turned placement's limbs onto branches as readily as the right
     // one's, so the choice is made without them (docs/decisions.md).
     choice.branch_weight = 0.0;

@@ -68,6 +68,10 @@ struct CoarseOptions {
   /// Rounds of the posture fit on each candidate before the choice; the chosen one is then
   /// fitted for all of `articulation.rounds`.
   int choice_rounds = 3;
+  /// The choice reads each placement's posture fit weighted by the template's asymmetry
+  /// under a half turn (ArticulationOptions::weigh_by_asymmetry): the parts that tell a body
+  /// from itself turned belly for back count most. false: every part alike.
+  bool choice_by_asymmetry = true;
   ArticulationOptions articulation;
   /// The posed template's last move, as a whole, fitted from the target's side; not applied
   /// when it would tilt the template past the upright prior's limit.
@@ -80,7 +84,8 @@ struct PlacementChoice {
   /// placement before any posture fit.
   Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
   /// Its score when the choice was made, as CoarseResult::choice_disagreement is measured:
-  /// the trimmed disagreement after the choice's posture-fit rounds, template sizes; when no
+  /// the trimmed disagreement after the choice's posture-fit rounds (weighted by the
+  /// template's asymmetry when CoarseOptions::choice_by_asymmetry), template sizes; when no
   /// candidate was fitted, the rigid disagreement in target units over the chosen
   /// placement's scale.
   double disagreement = 0.0;
@@ -124,7 +129,8 @@ struct CoarseResult {
   /// was given the posture fit), before the refit.
   double disagreement = 0.0;
   /// The chosen placement's disagreement when it was chosen: after the choice's rounds of
-  /// posture fit, or rigid when no candidate was fitted. 0 when nothing was chosen.
+  /// posture fit (weighted as PlacementChoice::disagreement, so not comparable with
+  /// `disagreement`), or rigid when no candidate was fitted. 0 when nothing was chosen.
   double choice_disagreement = 0.0;
   /// The least disagreement, measured as choice_disagreement is, of a candidate turned at
   /// least CoarseOptions::distinct_angle_deg from the chosen one: infinity when there is

@@ -50,6 +50,7 @@ const std::array kKeys = {
     VB_PROFILE_KEY(coarse.articulated_candidates, kCount, 0, 24, true, "distinct placements given the posture fit before the choice"),
     VB_PROFILE_KEY(coarse.turned_candidates, kCount, 0, 2, false, "the best placement also turned half round about the longest (1) and shortest (2) axis"),
     VB_PROFILE_KEY(coarse.choice_rounds, kRounds, 0, 50, true, "posture-fit rounds per placement before the choice"),
+    VB_PROFILE_KEY(coarse.choice_by_asymmetry, "0 or 1", 0, 1, false, "the choice weighs each part by how unlike the template is to itself turned belly for back there"),
     VB_PROFILE_KEY(coarse.articulation.rounds, kRounds, 0, 50, true, "posture-fit rounds of the chosen placement"),
     VB_PROFILE_KEY(coarse.articulation.template_samples, kCount, 50, 20000, false, "posture fit: template samples paired"),
     VB_PROFILE_KEY(coarse.articulation.target_samples, kCount, 50, 20000, false, "posture fit: target samples paired"),

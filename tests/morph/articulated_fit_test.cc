@@ -23,6 +23,59 @@ TEST(TrimmedDisagreementTest, IgnoresTheFarthestPairsOfEachSide) {
   EXPECT_GT(TrimmedDisagreement(a, a_index, b, b_index, 1.0), 0.5);
 }
 
+TEST(WeightedTrimmedDisagreementTest, WeighsEachSampleAndFallsBackToTheTrimmedMean) {
+  std::srand(7);
+  Eigen::Matrix3Xd a = Eigen::Matrix3Xd::Random(3, 500);
+  const Eigen::Matrix3Xd b = a;
+  a.leftCols(50).array() += 10.0;  // a tenth of a far away: a part b lacks
+  const PointIndex a_index(a), b_index(b);
+  // Alike weights (or none counting) give the trimmed mean, to the bit.
+  const double plain = TrimmedDisagreement(a, a_index, b, b_index, 1.0);
+  EXPECT_EQ(WeightedTrimmedDisagreement(a, a_index, std::vector<double>(500, 2.0), b, b_index, 1.0),
+            plain);
+  EXPECT_EQ(WeightedTrimmedDisagreement(a, a_index, std::vector<double>(500, 0.0), b, b_index, 1.0),
+            plain);
+  // The far tenth: about 50 x 17 / 500 / 2 on the way out.
+  EXPECT_GT(plain, 0.6);
+  EXPECT_LT(plain, 1.0);
+  // The far tenth weighed at nothing counts nowhere: only b's points that lost their
+  // partner, each paired with a near neighbour of weight 1, about 0.15 away: 0.0079.
+  std::vector<double> weights(500, 1.0);
+  std::fill_n(weights.begin(), 50, 0.0);
+  const double weighted = WeightedTrimmedDisagreement(a, a_index, weights, b, b_index, 1.0);
+  EXPECT_GT(weighted, 0.0055);
+  EXPECT_LT(weighted, 0.011);
+  // The target side takes its nearest template sample's weight, not its own column's.
+  Eigen::Matrix3Xd c(3, 2), d(3, 2);
+  c << 0, 10, 0, 0, 0, 0;  // (0, 0, 0), (10, 0, 0)
+  d << 10, 1, 0, 0, 0, 0;  // (10, 0, 0), (1, 0, 0): its second lies 1 from c's first
+  const PointIndex c_index(c), d_index(d);
+  EXPECT_EQ(WeightedTrimmedDisagreement(c, c_index, {0.0, 1.0}, d, d_index, 1.0), 0.0);
+  EXPECT_EQ(WeightedTrimmedDisagreement(c, c_index, {1.0, 1.0}, d, d_index, 1.0), 0.5);
+}
+
+TEST(HalfTurnAsymmetryTest, NearZeroWhereTheTurnMapsTheShapeOntoItself) {
+  // A cylinder of radius 0.1 along z, 1 long, in pairs opposite each other across the axis,
+  // and a nose: 10 points 0.3 out on one side, which the half turn puts where nothing is.
+  Eigen::Matrix3Xd samples(3, 2010);
+  for (int i = 0; i < 1000; ++i) {
+    const double angle = 0.0731 * i, z = -0.5 + 0.001 * i;
+    samples.col(2 * i) << 0.1 * std::cos(angle), 0.1 * std::sin(angle), z;
+    samples.col(2 * i + 1) << -0.1 * std::cos(angle), -0.1 * std::sin(angle), z;
+  }
+  for (int i = 0; i < 10; ++i) samples.col(2000 + i) << 0.3, 0.0, -0.05 + 0.01 * i;
+  samples.colwise() += Eigen::Vector3d(1.0, 2.0, 3.0);  // turned about its mean, not the origin
+  const std::vector<double> asymmetry = HalfTurnAsymmetry(samples);
+  ASSERT_EQ(asymmetry.size(), 2010u);
+  // The nose moves the mean 0.0015 towards it, so the cylinder's points turn 0.003 off.
+  for (int i = 0; i < 2000; ++i) EXPECT_LT(asymmetry[static_cast<std::size_t>(i)], 0.0035) << i;
+  // The nose turns to -0.3, 0.2 from the cylinder's side nearest it.
+  for (int i = 2000; i < 2010; ++i) {
+    EXPECT_GT(asymmetry[static_cast<std::size_t>(i)], 0.19) << i;
+    EXPECT_LT(asymmetry[static_cast<std::size_t>(i)], 0.21) << i;
+  }
+}
+
 TEST(MutualNearestPairsTest, PairsOnlyMutualNeighboursWithinTheRadius) {
   Eigen::Matrix3Xd a(3, 2), b(3, 3);
   a << 0, 1, 0, 0, 0, 0;

@@ -194,8 +194,14 @@ TEST_F(MorphCheckTest, AmbiguityComparesBothPlacementsWhenTheChoiceWasMade) {
   ASSERT_TRUE(std::isfinite(coarse.runner_up_disagreement));
   EXPECT_EQ(good.check.ambiguity, coarse.choice_disagreement / coarse.runner_up_disagreement);
   EXPECT_LT(coarse.choice_disagreement, coarse.runner_up_disagreement);
-  // The posture fit's remaining rounds lowered the chosen placement's disagreement.
-  EXPECT_LT(coarse.disagreement, coarse.choice_disagreement);
+  // The choice's scores are weighted by the template's asymmetry; read unweighted, the
+  // posture fit's remaining rounds lowered the chosen placement's disagreement.
+  MorphOptions unweighted = Upright();
+  unweighted.coarse.choice_by_asymmetry = false;
+  const CarcassResult plain = MorphCarcass(*model_, carcass_->annotations, cloud, {}, unweighted);
+  ASSERT_TRUE(plain.ok) << plain.error;
+  EXPECT_NE(plain.coarse.choice_disagreement, coarse.choice_disagreement);
+  EXPECT_LT(plain.coarse.disagreement, plain.coarse.choice_disagreement);
   // The placements compared, as reports and the shape benchmark read them: the chosen one
   // (turned 0 degrees from the placement kept) scored choice_disagreement, and the least score
   // of those turned distinct_angle_deg or more from it is the runner-up's.
