@@ -148,22 +148,32 @@ std::vector<std::pair<int, int>> MutualNearestPairs(const Eigen::Matrix3Xd& a,
   return pairs;
 }
 
+namespace {
+
+// The distance from each column of @p from to the nearest point @p to holds, and, given
+// @p partners, that point's index.
+std::vector<double> NearestDistances(const Eigen::Matrix3Xd& from, const PointIndex& to,
+                                     std::vector<int>* partners = nullptr) {
+  std::vector<double> out(static_cast<std::size_t>(from.cols()));
+  if (partners != nullptr) partners->resize(out.size());
+  std::vector<int> k;
+  std::vector<double> d2;
+  for (Eigen::Index i = 0; i < from.cols(); ++i) {
+    to.Nearest(from.col(i), 1, &k, &d2);
+    out[static_cast<std::size_t>(i)] = std::sqrt(d2.front());
+    if (partners != nullptr) (*partners)[static_cast<std::size_t>(i)] = k.front();
+  }
+  return out;
+}
+
+}  // namespace
+
 double TrimmedDisagreement(const Eigen::Matrix3Xd& a, const PointIndex& a_index,
                            const Eigen::Matrix3Xd& b_samples, const PointIndex& b_index,
                            double keep_fraction) {
   VB_DEMAND(a_index.size() > 0 && b_index.size() > 0);
-  std::vector<double> forward(static_cast<std::size_t>(a.cols()));
-  std::vector<double> backward(static_cast<std::size_t>(b_samples.cols()));
-  std::vector<int> k;
-  std::vector<double> d2;
-  for (Eigen::Index i = 0; i < a.cols(); ++i) {
-    b_index.Nearest(a.col(i), 1, &k, &d2);
-    forward[static_cast<std::size_t>(i)] = std::sqrt(d2.front());
-  }
-  for (Eigen::Index i = 0; i < b_samples.cols(); ++i) {
-    a_index.Nearest(b_samples.col(i), 1, &k, &d2);
-    backward[static_cast<std::size_t>(i)] = std::sqrt(d2.front());
-  }
+  std::vector<double> forward = NearestDistances(a, b_index);
+  std::vector<double> backward = NearestDistances(b_samples, a_index);
   return 0.5 * (TrimmedMean(std::move(forward), keep_fraction) +
                 TrimmedMean(std::move(backward), keep_fraction));
 }
@@ -191,20 +201,9 @@ double WeightedTrimmedDisagreement(const Eigen::Matrix3Xd& a, const PointIndex& 
                                    double keep_fraction) {
   VB_DEMAND(a_index.size() > 0 && b_index.size() > 0);
   VB_DEMAND(a_weights.size() == static_cast<std::size_t>(a.cols()));
-  std::vector<double> forward(static_cast<std::size_t>(a.cols()));
-  std::vector<double> backward(static_cast<std::size_t>(b_samples.cols()));
-  std::vector<int> backward_partner(backward.size());
-  std::vector<int> k;
-  std::vector<double> d2;
-  for (Eigen::Index i = 0; i < a.cols(); ++i) {
-    b_index.Nearest(a.col(i), 1, &k, &d2);
-    forward[static_cast<std::size_t>(i)] = std::sqrt(d2.front());
-  }
-  for (Eigen::Index i = 0; i < b_samples.cols(); ++i) {
-    a_index.Nearest(b_samples.col(i), 1, &k, &d2);
-    backward[static_cast<std::size_t>(i)] = std::sqrt(d2.front());
-    backward_partner[static_cast<std::size_t>(i)] = k.front();
-  }
+  const std::vector<double> forward = NearestDistances(a, b_index);
+  std::vector<int> backward_partner;
+  const std::vector<double> backward = NearestDistances(b_samples, a_index, &backward_partner);
   // The kept distances' weighted mean; their plain mean when the kept weights sum to zero.
   const auto weighted_mean = [&](const std::vector<double>& d, auto weight_of) {
     if (d.empty()) return 0.0;
