@@ -1,6 +1,5 @@
 #include "morph/articulated_fit.h"
 
-#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
@@ -8,6 +7,7 @@
 #include <limits>
 #include <numbers>
 
+#include "geometry/principal_axes.h"
 #include "io/error.h"
 #include "morph/order_statistic.h"
 
@@ -180,16 +180,14 @@ double TrimmedDisagreement(const Eigen::Matrix3Xd& a, const PointIndex& a_index,
 
 std::vector<double> HalfTurnAsymmetry(const Eigen::Matrix3Xd& samples) {
   VB_DEMAND(samples.cols() > 0);
-  const Eigen::Vector3d mean = samples.rowwise().mean();
-  const Eigen::Matrix3Xd centred = samples.colwise() - mean;
-  // Eigenvalues ascending: column 2 is the longest axis.
-  const Eigen::Matrix3d axes =
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(centred * centred.transpose()).eigenvectors();
-  const Eigen::Matrix3d half = Eigen::AngleAxisd(std::numbers::pi, axes.col(2)).toRotationMatrix();
+  const geometry::PrincipalAxes principal = geometry::FitPrincipalAxes(samples);
+  const Eigen::Vector3d& mean = principal.mean;
+  const Eigen::Matrix3d half =
+      Eigen::AngleAxisd(std::numbers::pi, principal.axes.col(2)).toRotationMatrix();
   const PointIndex index(samples);
   std::vector<double> out(static_cast<std::size_t>(samples.cols()));
   for (Eigen::Index i = 0; i < samples.cols(); ++i) {
-    const Eigen::Vector3d turned = mean + half * centred.col(i);
+    const Eigen::Vector3d turned = mean + half * (samples.col(i) - mean);
     out[static_cast<std::size_t>(i)] = (samples.col(index.Nearest(turned)) - turned).norm();
   }
   return out;

@@ -12,6 +12,7 @@
 #include <string>
 
 #include "geometry/mesh_measures.h"
+#include "geometry/principal_axes.h"
 #include "io/error.h"
 #include "morph/cloud_normals.h"
 #include "morph/limb_turn.h"
@@ -86,16 +87,14 @@ Eigen::Matrix3Xd Apply(const Similarity& fit, const Eigen::Matrix3Xd& points) {
 // which stays where @p placement puts it.
 std::vector<Similarity> HalfTurns(const Similarity& placement,
                                   const Eigen::Matrix3Xd& template_samples, int count) {
-  const Eigen::Vector3d mean = template_samples.rowwise().mean();
-  const Eigen::Matrix3Xd centred = template_samples.colwise() - mean;
-  // Eigenvalues ascending: column 2 is the longest axis, column 0 the shortest.
-  const Eigen::Matrix3d axes =
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(centred * centred.transpose()).eigenvectors();
+  const geometry::PrincipalAxes principal = geometry::FitPrincipalAxes(template_samples);
+  const Eigen::Vector3d& mean = principal.mean;
   std::vector<Similarity> out;
   for (int k = 0; k < std::min(count, 2); ++k) {
     Similarity turned = placement;
-    turned.R = placement.R *
-               Eigen::AngleAxisd(std::numbers::pi, axes.col(k == 0 ? 2 : 0)).toRotationMatrix();
+    turned.R =
+        placement.R *
+        Eigen::AngleAxisd(std::numbers::pi, principal.axes.col(k == 0 ? 2 : 0)).toRotationMatrix();
     turned.t = placement(mean) - turned.scale * (turned.R * mean);
     out.push_back(turned);
   }
